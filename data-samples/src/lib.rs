@@ -1,0 +1,3 @@
+//! # data-samples
+//!
+//! Generators for synthetic datasets.

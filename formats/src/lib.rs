@@ -1,0 +1,3 @@
+//! # formats
+//!
+//! Readers and writers that turn files into `volume-core` types.

@@ -1,0 +1,3 @@
+//! # isoscope-e2e
+//!
+//! Cross-crate end-to-end tests live in `tests/tests/`; this library holds their shared helpers.

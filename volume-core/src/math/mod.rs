@@ -1,0 +1,122 @@
+//! Small geometric and numeric building blocks shared by every acceleration structure.
+//!
+//! - [`Ray`]: origin, direction and its precomputed reciprocal (for slab tests).
+//! - [`Aabb`]: axis-aligned bounds with the conservative slab test of pbrt-v4 §6.1
+//!   (the far distance is scaled by `1 + 2·gamma(3)` so that rounding never drops a hit).
+//! - [`Interval`]: closed `f32` intervals for ray-segment and value ranges.
+//! - [`float`]: floating-point error bounds (`gamma(n)`) and ulp stepping.
+
+pub mod float;
+mod interval;
+
+pub use interval::Interval;
+
+use glam::Vec3;
+
+/// A ray `origin + t·dir`, `t` in world units when `dir` is unit length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// `1 / dir` per component (`±inf` for zero components, which the slab test handles).
+    pub inv_dir: Vec3,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self {
+            origin,
+            dir,
+            inv_dir: dir.recip(),
+        }
+    }
+
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// Axis-aligned bounds; `min > max` on some axis means empty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Self { min, max }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    pub fn union(&self, o: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    pub fn grow(&self, p: Vec3) -> Aabb {
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    pub fn extent(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Parametric overlap of the ray with the box, clipped to `[t_min, t_max]`, or `None`.
+    ///
+    /// Conservative: `t_far` is enlarged by `1 + 2·gamma(3)` (pbrt-v4 §6.1.2) so that a ray
+    /// grazing a face is never lost to rounding. Zero direction components give `±inf`
+    /// reciprocals; `0·inf = NaN` cases (origin exactly on a slab plane) are resolved by
+    /// `min`/`max`, which ignore the NaN operand.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+        let t0 = (self.min - ray.origin) * ray.inv_dir;
+        let t1 = (self.max - ray.origin) * ray.inv_dir;
+        let t_near = t0.min(t1);
+        let t_far = t0.max(t1) * (1.0 + 2.0 * float::gamma_f32(3));
+        let lo = t_near.max_element().max(t_min);
+        let hi = t_far.min_element().min(t_max);
+        (lo <= hi).then_some((lo, hi))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slab_test_handles_axis_parallel_and_grazing_rays() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let r = Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X);
+        let (t0, t1) = b.intersect(&r, 0.0, f32::INFINITY).unwrap();
+        assert!((t0 - 1.0).abs() < 1e-6 && (t1 - 2.0).abs() < 1e-6);
+        // A ray lying exactly in the face plane y = 1 still hits (closed box).
+        let graze = Ray::new(Vec3::new(-1.0, 1.0, 0.5), Vec3::X);
+        assert!(b.intersect(&graze, 0.0, f32::INFINITY).is_some());
+        let miss = Ray::new(Vec3::new(-1.0, 1.5, 0.5), Vec3::X);
+        assert!(b.intersect(&miss, 0.0, f32::INFINITY).is_none());
+        assert!(b.intersect(&r, 0.0, 0.5).is_none());
+    }
+}

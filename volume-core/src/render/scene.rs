@@ -1,0 +1,158 @@
+//! The contract between acceleration structures and the renderer.
+//!
+//! One renderer, several acceleration structures: the implicit min/max kd-tree over a
+//! rectilinear grid (thesis ch. 7) and the implicit min/max BVH over tetrahedra (ch. 8) both
+//! implement [`IsoScene`]. The renderer is generic over the scene, so the traversal loop is
+//! monomorphized: no dynamic dispatch per node or per ray.
+//!
+//! Statistics are gathered through a [`Stats`] type parameter. [`NoStats`] compiles every
+//! counter away, so statistics cost nothing when they are off.
+
+use glam::Vec3;
+
+use crate::math::{Aabb, Ray};
+
+/// The first intersection of a ray with one of the active isosurfaces.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit (world units along a unit-length world direction).
+    pub t: f32,
+    /// Index into the isovalue list of the surface that was hit.
+    pub surface: u32,
+    /// World-space unit normal (orientation unspecified; shading is two-sided).
+    pub normal: Vec3,
+}
+
+/// Counters in the spirit of thesis Tables 7.1 and 8.4.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct TraversalCounts {
+    pub rays: u64,
+    pub nodes_visited: u64,
+    pub leaves_visited: u64,
+    pub box_tests: u64,
+    pub intersection_tests: u64,
+    pub polygon_extractions: u64,
+}
+
+impl TraversalCounts {
+    pub fn add(&mut self, o: &TraversalCounts) {
+        self.rays += o.rays;
+        self.nodes_visited += o.nodes_visited;
+        self.leaves_visited += o.leaves_visited;
+        self.box_tests += o.box_tests;
+        self.intersection_tests += o.intersection_tests;
+        self.polygon_extractions += o.polygon_extractions;
+    }
+}
+
+/// A sink for traversal statistics; [`NoStats`] makes every call a no-op.
+pub trait Stats: Default + Send {
+    const ENABLED: bool;
+    fn ray(&mut self) {}
+    fn node(&mut self) {}
+    fn leaf(&mut self) {}
+    fn box_test(&mut self, _n: u64) {}
+    fn intersection(&mut self) {}
+    fn extraction(&mut self) {}
+    fn counts(&self) -> TraversalCounts {
+        TraversalCounts::default()
+    }
+    fn merge(&mut self, _o: &Self) {}
+}
+
+/// Statistics off: zero cost.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoStats;
+
+impl Stats for NoStats {
+    const ENABLED: bool = false;
+}
+
+/// Statistics on: plain counters.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CountStats(pub TraversalCounts);
+
+impl Stats for CountStats {
+    const ENABLED: bool = true;
+    #[inline]
+    fn ray(&mut self) {
+        self.0.rays += 1;
+    }
+    #[inline]
+    fn node(&mut self) {
+        self.0.nodes_visited += 1;
+    }
+    #[inline]
+    fn leaf(&mut self) {
+        self.0.leaves_visited += 1;
+    }
+    #[inline]
+    fn box_test(&mut self, n: u64) {
+        self.0.box_tests += n;
+    }
+    #[inline]
+    fn intersection(&mut self) {
+        self.0.intersection_tests += 1;
+    }
+    #[inline]
+    fn extraction(&mut self) {
+        self.0.polygon_extractions += 1;
+    }
+    fn counts(&self) -> TraversalCounts {
+        self.0
+    }
+    fn merge(&mut self, o: &Self) {
+        self.0.add(&o.0);
+    }
+}
+
+/// Something the renderer can shoot rays at: the isosurfaces of a volume.
+///
+/// All rays and bounds are in world space. `isovalues` is the list of active isovalues (any
+/// number); the first hit of any of them along `[t_min, t_max]` wins. Implementations must be
+/// conservative: a hit the f64 reference finds inside `[t_min, t_max]` is not lost to rounding.
+pub trait IsoScene: Sync {
+    /// World-space bounds of the data.
+    fn world_bounds(&self) -> Aabb;
+
+    /// First hit along the ray in `[t_min, t_max]`.
+    fn first_hit<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> Option<Hit>;
+
+    /// Any hit in `[t_min, t_max]` (shadow rays). Defaults to `first_hit`.
+    fn occluded<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> bool {
+        self.first_hit(ray, t_min, t_max, isovalues, stats)
+            .is_some()
+    }
+
+    /// First hits for a coherent packet of rays sharing `[t_min[i], t_max[i]]`.
+    ///
+    /// Structures with packet traversal (SIMD kd-tree packets, 16×16 BVH frusta) override
+    /// this; the default traces the rays one by one.
+    fn first_hit_packet<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isovalues: &[f32],
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        for (i, ray) in rays.iter().enumerate() {
+            out[i] = self.first_hit(ray, t_min[i], t_max[i], isovalues, stats);
+        }
+    }
+}

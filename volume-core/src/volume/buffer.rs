@@ -1,0 +1,258 @@
+//! Voxel storage: owned, or borrowed zero-copy from a shared byte source.
+//!
+//! `formats` memory-maps a raw or NRRD file and hands the map over as a [`ByteSource`]; the
+//! voxels are then viewed in place with `bytemuck` (alignment and size checked once, here),
+//! so opening a 10 GB file reads nothing and copies nothing. Edits (thesis §7.6) copy on write.
+
+use std::sync::Arc;
+
+use crate::error::VolumeError;
+use crate::voxel::{Voxel, VoxelType};
+
+/// Bytes that outlive the volume viewing them (a memory map, a `Vec<u8>`, ...).
+pub trait ByteSource: Send + Sync {
+    fn bytes(&self) -> &[u8];
+}
+
+impl<T: AsRef<[u8]> + Send + Sync> ByteSource for T {
+    fn bytes(&self) -> &[u8] {
+        self.as_ref()
+    }
+}
+
+#[derive(Clone)]
+enum Storage<T> {
+    Owned(Arc<Vec<T>>),
+    Shared {
+        source: Arc<dyn ByteSource>,
+        byte_offset: usize,
+        len: usize,
+    },
+}
+
+/// A contiguous run of voxels of one native type.
+#[derive(Clone)]
+pub struct VoxelBuffer<T: Voxel> {
+    storage: Storage<T>,
+}
+
+impl<T: Voxel> VoxelBuffer<T> {
+    pub fn from_vec(voxels: Vec<T>) -> Self {
+        Self {
+            storage: Storage::Owned(Arc::new(voxels)),
+        }
+    }
+
+    /// Views `len` native-endian voxels at `byte_offset` of `source` without copying.
+    pub fn from_shared(
+        source: Arc<dyn ByteSource>,
+        byte_offset: usize,
+        len: usize,
+    ) -> Result<Self, VolumeError> {
+        let size = size_of::<T>();
+        let bytes = source.bytes();
+        let needed = len.checked_mul(size).ok_or(VolumeError::SourceTooShort {
+            offset: byte_offset,
+            needed: usize::MAX,
+            available: bytes.len(),
+        })?;
+        let end = byte_offset.checked_add(needed);
+        if end.is_none_or(|e| e > bytes.len()) {
+            return Err(VolumeError::SourceTooShort {
+                offset: byte_offset,
+                needed,
+                available: bytes.len(),
+            });
+        }
+        let ptr = bytes.as_ptr() as usize + byte_offset;
+        if !ptr.is_multiple_of(align_of::<T>()) {
+            return Err(VolumeError::Misaligned {
+                offset: byte_offset,
+                align: align_of::<T>(),
+                voxel_type: T::TYPE.name(),
+            });
+        }
+        Ok(Self {
+            storage: Storage::Shared {
+                source,
+                byte_offset,
+                len,
+            },
+        })
+    }
+
+    #[inline]
+    pub fn as_slice(&self) -> &[T] {
+        match &self.storage {
+            Storage::Owned(v) => v.as_slice(),
+            Storage::Shared {
+                source,
+                byte_offset,
+                len,
+            } => {
+                let bytes = &source.bytes()[*byte_offset..*byte_offset + *len * size_of::<T>()];
+                // Size and alignment were checked in `from_shared`.
+                bytemuck::cast_slice(bytes)
+            }
+        }
+    }
+
+    /// Mutable access; a shared (mapped) buffer is first copied into owned memory.
+    pub fn make_mut(&mut self) -> &mut Vec<T> {
+        if let Storage::Shared { .. } = self.storage {
+            self.storage = Storage::Owned(Arc::new(self.as_slice().to_vec()));
+        }
+        match &mut self.storage {
+            Storage::Owned(v) => Arc::make_mut(v),
+            Storage::Shared { .. } => unreachable!("converted to owned above"),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        match &self.storage {
+            Storage::Owned(v) => v.len(),
+            Storage::Shared { len, .. } => *len,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// True when the voxels are viewed in place in a shared source (e.g. a memory map).
+    pub fn is_shared(&self) -> bool {
+        matches!(self.storage, Storage::Shared { .. })
+    }
+}
+
+/// Voxels of any native type. Match once (with [`crate::dispatch_voxels!`]) and run generic
+/// code on the typed buffer; never match per voxel.
+#[derive(Clone)]
+pub enum VoxelData {
+    U8(VoxelBuffer<u8>),
+    I8(VoxelBuffer<i8>),
+    U16(VoxelBuffer<u16>),
+    I16(VoxelBuffer<i16>),
+    U32(VoxelBuffer<u32>),
+    I32(VoxelBuffer<i32>),
+    F32(VoxelBuffer<f32>),
+    F64(VoxelBuffer<f64>),
+}
+
+/// Runs `$body` with `$buf` bound to the typed [`VoxelBuffer`] inside a [`VoxelData`].
+#[macro_export]
+macro_rules! dispatch_voxels {
+    ($data:expr, $buf:ident => $body:expr) => {
+        match $data {
+            $crate::VoxelData::U8($buf) => $body,
+            $crate::VoxelData::I8($buf) => $body,
+            $crate::VoxelData::U16($buf) => $body,
+            $crate::VoxelData::I16($buf) => $body,
+            $crate::VoxelData::U32($buf) => $body,
+            $crate::VoxelData::I32($buf) => $body,
+            $crate::VoxelData::F32($buf) => $body,
+            $crate::VoxelData::F64($buf) => $body,
+        }
+    };
+}
+
+impl VoxelData {
+    pub fn voxel_type(&self) -> VoxelType {
+        match self {
+            VoxelData::U8(_) => VoxelType::U8,
+            VoxelData::I8(_) => VoxelType::I8,
+            VoxelData::U16(_) => VoxelType::U16,
+            VoxelData::I16(_) => VoxelType::I16,
+            VoxelData::U32(_) => VoxelType::U32,
+            VoxelData::I32(_) => VoxelType::I32,
+            VoxelData::F32(_) => VoxelType::F32,
+            VoxelData::F64(_) => VoxelType::F64,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        dispatch_voxels!(self, b => b.len())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn is_shared(&self) -> bool {
+        dispatch_voxels!(self, b => b.is_shared())
+    }
+
+    /// Size of the voxels in bytes.
+    pub fn size_bytes(&self) -> usize {
+        self.len() * self.voxel_type().size_bytes()
+    }
+
+    /// Views `len` native-endian voxels of type `voxel_type` at `byte_offset` in `source`.
+    pub fn from_shared(
+        voxel_type: VoxelType,
+        source: Arc<dyn ByteSource>,
+        byte_offset: usize,
+        len: usize,
+    ) -> Result<Self, VolumeError> {
+        Ok(match voxel_type {
+            VoxelType::U8 => VoxelData::U8(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::I8 => VoxelData::I8(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::U16 => VoxelData::U16(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::I16 => VoxelData::I16(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::U32 => VoxelData::U32(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::I32 => VoxelData::I32(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::F32 => VoxelData::F32(VoxelBuffer::from_shared(source, byte_offset, len)?),
+            VoxelType::F64 => VoxelData::F64(VoxelBuffer::from_shared(source, byte_offset, len)?),
+        })
+    }
+}
+
+macro_rules! impl_from_vec {
+    ($($t:ty => $tag:ident),*) => {$(
+        impl From<Vec<$t>> for VoxelData {
+            fn from(v: Vec<$t>) -> Self {
+                VoxelData::$tag(VoxelBuffer::from_vec(v))
+            }
+        }
+    )*};
+}
+impl_from_vec!(u8 => U8, i8 => I8, u16 => U16, i16 => I16, u32 => U32, i32 => I32, f32 => F32, f64 => F64);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shared_view_reads_in_place_and_checks_bounds_and_alignment() {
+        let bytes: Vec<u8> = [1u16, 2, 3, 4]
+            .iter()
+            .flat_map(|v| v.to_ne_bytes())
+            .collect();
+        let src: Arc<dyn ByteSource> = Arc::new(bytes);
+        let buf = VoxelBuffer::<u16>::from_shared(src.clone(), 2, 3).unwrap();
+        assert_eq!(buf.as_slice(), &[2, 3, 4]);
+        assert!(buf.is_shared());
+        assert!(matches!(
+            VoxelBuffer::<u16>::from_shared(src.clone(), 2, 4),
+            Err(VolumeError::SourceTooShort { .. })
+        ));
+        assert!(matches!(
+            VoxelBuffer::<u16>::from_shared(src.clone(), 1, 1),
+            Err(VolumeError::Misaligned { .. })
+        ));
+        assert!(matches!(
+            VoxelBuffer::<u16>::from_shared(src, 0, usize::MAX),
+            Err(VolumeError::SourceTooShort { .. })
+        ));
+    }
+
+    #[test]
+    fn make_mut_copies_shared_data_on_write() {
+        let src: Arc<dyn ByteSource> = Arc::new(vec![5u8, 6, 7]);
+        let mut buf = VoxelBuffer::<u8>::from_shared(src.clone(), 0, 3).unwrap();
+        buf.make_mut()[0] = 9;
+        assert_eq!(buf.as_slice(), &[9, 6, 7]);
+        assert_eq!(src.bytes(), &[5, 6, 7]);
+        assert!(!buf.is_shared());
+    }
+}

@@ -1,0 +1,252 @@
+//! Grid geometry: dimensions, per-axis sample coordinates and orientation.
+
+use std::sync::Arc;
+
+use glam::{DAffine3, DVec3};
+
+use crate::error::VolumeError;
+
+/// Sample coordinates along one axis, in the grid frame (world units, e.g. millimetres).
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxisCoords {
+    /// `x_i = origin + i·spacing`, `spacing > 0`.
+    Uniform { origin: f64, spacing: f64 },
+    /// Explicit, strictly increasing coordinates, one per sample.
+    Explicit(Arc<[f64]>),
+}
+
+impl AxisCoords {
+    /// Coordinate of sample `i` (no bounds check for uniform axes).
+    #[inline]
+    pub fn coord(&self, i: usize) -> f64 {
+        match self {
+            AxisCoords::Uniform { origin, spacing } => origin + i as f64 * spacing,
+            AxisCoords::Explicit(c) => c[i],
+        }
+    }
+
+    pub fn is_uniform(&self) -> bool {
+        matches!(self, AxisCoords::Uniform { .. })
+    }
+}
+
+/// The geometry of a rectilinear volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    dims: [usize; 3],
+    axes: [AxisCoords; 3],
+    /// Maps grid-frame positions to world positions; `None` is the identity.
+    world_from_grid: Option<DAffine3>,
+}
+
+impl Grid {
+    /// A uniform grid: `origin + index · spacing` per axis.
+    pub fn uniform(
+        dims: [usize; 3],
+        origin: [f64; 3],
+        spacing: [f64; 3],
+    ) -> Result<Self, VolumeError> {
+        let axes = [0, 1, 2].map(|a| AxisCoords::Uniform {
+            origin: origin[a],
+            spacing: spacing[a],
+        });
+        Self::new(dims, axes, None)
+    }
+
+    /// A grid from explicit parts, validated: no zero or overflowing dims, positive finite
+    /// spacing, explicit coordinates strictly increasing with one entry per sample, and an
+    /// invertible finite `world_from_grid`.
+    pub fn new(
+        dims: [usize; 3],
+        axes: [AxisCoords; 3],
+        world_from_grid: Option<DAffine3>,
+    ) -> Result<Self, VolumeError> {
+        if dims.contains(&0) {
+            return Err(VolumeError::EmptyDims { dims });
+        }
+        checked_count(dims).ok_or(VolumeError::DimsOverflow { dims })?;
+        for (axis, coords) in axes.iter().enumerate() {
+            match coords {
+                AxisCoords::Uniform { origin, spacing } => {
+                    if !origin.is_finite() {
+                        return Err(VolumeError::BadAxis {
+                            axis,
+                            reason: format!("origin {origin} is not finite"),
+                        });
+                    }
+                    if !(spacing.is_finite() && *spacing > 0.0) {
+                        return Err(VolumeError::BadAxis {
+                            axis,
+                            reason: format!("spacing {spacing} must be finite and positive"),
+                        });
+                    }
+                }
+                AxisCoords::Explicit(c) => {
+                    if c.len() != dims[axis] {
+                        return Err(VolumeError::BadAxis {
+                            axis,
+                            reason: format!("{} coordinates for {} samples", c.len(), dims[axis]),
+                        });
+                    }
+                    if let Some(i) = c.iter().position(|x| !x.is_finite()) {
+                        return Err(VolumeError::BadAxis {
+                            axis,
+                            reason: format!("coordinate {i} is not finite"),
+                        });
+                    }
+                    if let Some(i) = c.windows(2).position(|w| w[1] <= w[0]) {
+                        return Err(VolumeError::BadAxis {
+                            axis,
+                            reason: format!(
+                                "coordinates are not strictly increasing at index {}",
+                                i + 1
+                            ),
+                        });
+                    }
+                }
+            }
+        }
+        if let Some(m) = world_from_grid {
+            let det = m.matrix3.determinant();
+            if !(det.is_finite() && det != 0.0 && m.translation.is_finite()) {
+                return Err(VolumeError::SingularTransform);
+            }
+        }
+        Ok(Self {
+            dims,
+            axes,
+            world_from_grid,
+        })
+    }
+
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    pub fn axes(&self) -> &[AxisCoords; 3] {
+        &self.axes
+    }
+
+    pub fn axis(&self, a: usize) -> &AxisCoords {
+        &self.axes[a]
+    }
+
+    pub fn world_from_grid(&self) -> Option<DAffine3> {
+        self.world_from_grid
+    }
+
+    /// Total number of voxels (checked against overflow at construction).
+    pub fn voxel_count(&self) -> usize {
+        self.dims[0] * self.dims[1] * self.dims[2]
+    }
+
+    /// Number of cells per axis (`dims − 1`, at least 0).
+    pub fn cell_dims(&self) -> [usize; 3] {
+        self.dims.map(|d| d.saturating_sub(1))
+    }
+
+    /// Linear index of voxel `(i, j, k)`, x fastest. 64-bit arithmetic: no wrap above 2^32.
+    #[inline]
+    pub fn linear_index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+
+    /// Uniform spacing per axis, or `None` if any axis has explicit coordinates.
+    pub fn uniform_spacing(&self) -> Option<[f64; 3]> {
+        let mut s = [0.0; 3];
+        for (a, c) in self.axes.iter().enumerate() {
+            match c {
+                AxisCoords::Uniform { spacing, .. } => s[a] = *spacing,
+                AxisCoords::Explicit(_) => return None,
+            }
+        }
+        Some(s)
+    }
+
+    /// Grid-frame position of sample `(i, j, k)`.
+    pub fn grid_position(&self, i: usize, j: usize, k: usize) -> DVec3 {
+        DVec3::new(
+            self.axes[0].coord(i),
+            self.axes[1].coord(j),
+            self.axes[2].coord(k),
+        )
+    }
+
+    /// Grid-frame bounds `[first sample, last sample]` per axis.
+    pub fn grid_bounds(&self) -> (DVec3, DVec3) {
+        let lo = self.grid_position(0, 0, 0);
+        let hi = self.grid_position(self.dims[0] - 1, self.dims[1] - 1, self.dims[2] - 1);
+        (lo, hi)
+    }
+
+    /// Grid-frame origin (position of voxel 0).
+    pub fn origin(&self) -> DVec3 {
+        self.grid_position(0, 0, 0)
+    }
+
+    /// Replaces the per-axis coordinates (same dims), e.g. a spacing edit (thesis §7.6: only
+    /// the kd-tree's split tables depend on these).
+    pub fn with_axes(&self, axes: [AxisCoords; 3]) -> Result<Self, VolumeError> {
+        Self::new(self.dims, axes, self.world_from_grid)
+    }
+}
+
+/// `x·y·z` without overflow, or `None`.
+pub fn checked_count(dims: [usize; 3]) -> Option<usize> {
+    dims[0].checked_mul(dims[1])?.checked_mul(dims[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniform_grid_bounds_follow_node_centred_convention() {
+        let g = Grid::uniform([4, 3, 2], [1.0, 2.0, 3.0], [0.5, 1.0, 2.0]).unwrap();
+        let (lo, hi) = g.grid_bounds();
+        assert_eq!(lo, DVec3::new(1.0, 2.0, 3.0));
+        assert_eq!(hi, DVec3::new(1.0 + 3.0 * 0.5, 2.0 + 2.0, 3.0 + 2.0));
+        assert_eq!(g.cell_dims(), [3, 2, 1]);
+        assert_eq!(g.linear_index(1, 2, 1), 1 + 4 * (2 + 3));
+    }
+
+    #[test]
+    fn rejects_bad_geometry() {
+        assert!(matches!(
+            Grid::uniform([0, 1, 1], [0.0; 3], [1.0; 3]),
+            Err(VolumeError::EmptyDims { .. })
+        ));
+        assert!(matches!(
+            Grid::uniform([usize::MAX, 2, 2], [0.0; 3], [1.0; 3]),
+            Err(VolumeError::DimsOverflow { .. })
+        ));
+        assert!(matches!(
+            Grid::uniform([2, 2, 2], [0.0; 3], [1.0, -1.0, 1.0]),
+            Err(VolumeError::BadAxis { axis: 1, .. })
+        ));
+        let bad = AxisCoords::Explicit(vec![0.0, 2.0, 1.0].into());
+        let u = AxisCoords::Uniform {
+            origin: 0.0,
+            spacing: 1.0,
+        };
+        assert!(matches!(
+            Grid::new([3, 1, 1], [bad, u.clone(), u.clone()], None),
+            Err(VolumeError::BadAxis { axis: 0, .. })
+        ));
+        let singular = DAffine3::from_cols_array(&[
+            1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
+        ]);
+        assert_eq!(
+            Grid::new([2, 2, 2], [u.clone(), u.clone(), u], Some(singular)),
+            Err(VolumeError::SingularTransform)
+        );
+    }
+
+    #[test]
+    fn index_arithmetic_does_not_wrap_above_u32() {
+        let g = Grid::uniform([2048, 2048, 1100], [0.0; 3], [1.0; 3]).unwrap();
+        assert_eq!(g.voxel_count(), 2048usize * 2048 * 1100);
+        assert!(g.voxel_count() > u32::MAX as usize);
+        assert_eq!(g.linear_index(2047, 2047, 1099), g.voxel_count() - 1);
+    }
+}
