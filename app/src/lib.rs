@@ -1,3 +1,8 @@
 //! # isoscope (app library)
 //!
-//! The testable part of the `isoscope` binary: CLI commands, UI state, panels, background jobs.
+//! The testable part of the `isoscope` binary.
+//!
+//! - [`cli`]: the subcommands (`info`, `generate`, `render`, `bench`, ...), each a module with
+//!   clap `Args` and a `run` function, so tests call them without spawning a process.
+
+pub mod cli;

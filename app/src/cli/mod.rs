@@ -1,0 +1,41 @@
+//! Command-line interface: one module per subcommand, each with an `Args` struct (clap) and a
+//! `run(args) -> anyhow::Result<()>`. With no subcommand, `main.rs` opens the viewer.
+
+use clap::{Parser, Subcommand};
+
+pub mod bench;
+pub mod generate;
+pub mod info;
+pub mod render;
+
+/// Isoscope: exact, interactive isosurfaces of volume data by CPU ray tracing.
+#[derive(Debug, Parser)]
+#[command(name = "isoscope", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    /// Files to open in the viewer (when no subcommand is given).
+    pub files: Vec<std::path::PathBuf>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Print dims, voxel type, geometry, value range, time steps and a histogram.
+    Info(info::Args),
+    /// Write a synthetic dataset (Marschner-Lobb, sphere, torus, phantom, ...).
+    Generate(generate::Args),
+    /// Ray trace isosurfaces to a PNG, headless.
+    Render(render::Args),
+    /// Measure build time, memory and rays/s of the acceleration structures and intersectors.
+    Bench(bench::Args),
+}
+
+/// Runs a subcommand.
+pub fn run(command: Command) -> anyhow::Result<()> {
+    match command {
+        Command::Info(a) => info::run(&a),
+        Command::Generate(a) => generate::run(&a),
+        Command::Render(a) => render::run(&a),
+        Command::Bench(a) => bench::run(&a),
+    }
+}
