@@ -1,0 +1,247 @@
+//! The NRRD writer: NRRD0004, native byte order, raw or gzip.
+//!
+//! Oriented volumes (with `world_from_grid`) are written with `space dimension: 3`, `space
+//! directions` and `space origin`; others with `spacings`, `axis mins` and `centers: node`
+//! (so the minimum is the first sample, see [`super::geometry`]). Grids with explicit
+//! coordinates cannot be written (NRRD has no per-sample coordinates) and are rejected.
+//! The file is written to a temporary name in the same directory and renamed, so a failed
+//! write never leaves a half-written file under the final name.
+
+use std::fmt::Write as _;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use glam::DVec3;
+use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
+
+use crate::error::FormatError;
+use crate::raw::Endian;
+
+/// Data encoding of a written NRRD.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NrrdEncoding {
+    #[default]
+    Raw,
+    Gzip,
+}
+
+fn teem_type(t: VoxelType) -> &'static str {
+    match t {
+        VoxelType::U8 => "uint8",
+        VoxelType::I8 => "int8",
+        VoxelType::U16 => "uint16",
+        VoxelType::I16 => "int16",
+        VoxelType::U32 => "uint32",
+        VoxelType::I32 => "int32",
+        VoxelType::F32 => "float",
+        VoxelType::F64 => "double",
+    }
+}
+
+fn vec3(v: DVec3) -> String {
+    format!("({},{},{})", v.x, v.y, v.z)
+}
+
+/// The header text for `volume` (ends with the blank line).
+pub(crate) fn header_text(
+    path: &Path,
+    volume: &RectilinearVolume,
+    encoding: NrrdEncoding,
+) -> Result<String, FormatError> {
+    let grid = &volume.grid;
+    let Some(spacing) = grid.uniform_spacing() else {
+        let axis = grid
+            .axes()
+            .iter()
+            .position(|a| !a.is_uniform())
+            .unwrap_or(0);
+        return Err(FormatError::Unsupported {
+            path: path.to_path_buf(),
+            field: "spacings".into(),
+            reason: format!(
+                "axis {axis} has explicit coordinates; NRRD can only store uniform spacing"
+            ),
+        });
+    };
+    let dims = grid.dims();
+    let t = volume.data.voxel_type();
+    let mut h = String::from("NRRD0004\n");
+    h.push_str("# Complete NRRD file format specification at:\n");
+    h.push_str("# http://teem.sourceforge.net/nrrd/format.html\n");
+    let _ = writeln!(h, "type: {}", teem_type(t));
+    h.push_str("dimension: 3\n");
+    let _ = writeln!(h, "sizes: {} {} {}", dims[0], dims[1], dims[2]);
+    if let Some(m) = grid.world_from_grid() {
+        let origin = m.transform_point3(grid.origin());
+        h.push_str("space dimension: 3\n");
+        let dirs: Vec<String> = (0..3)
+            .map(|a| vec3(m.matrix3.col(a) * spacing[a]))
+            .collect();
+        let _ = writeln!(h, "space directions: {}", dirs.join(" "));
+        let _ = writeln!(h, "space origin: {}", vec3(origin));
+    } else {
+        let origin = grid.axes().clone().map(|a| match a {
+            AxisCoords::Uniform { origin, .. } => origin,
+            AxisCoords::Explicit(c) => c[0],
+        });
+        let _ = writeln!(h, "spacings: {} {} {}", spacing[0], spacing[1], spacing[2]);
+        let _ = writeln!(h, "axis mins: {} {} {}", origin[0], origin[1], origin[2]);
+    }
+    h.push_str("centers: node node node\n");
+    h.push_str("kinds: domain domain domain\n");
+    if t.size_bytes() > 1 {
+        let _ = writeln!(h, "endian: {}", Endian::native().name());
+    }
+    let _ = writeln!(
+        h,
+        "encoding: {}",
+        match encoding {
+            NrrdEncoding::Raw => "raw",
+            NrrdEncoding::Gzip => "gzip",
+        }
+    );
+    // Pad with a comment so the data starts 8-byte aligned: readers can then view it in place
+    // in a memory map (zero copy) for every voxel type.
+    let mut pad = (8 - (h.len() + 1) % 8) % 8;
+    if pad == 1 {
+        pad = 9;
+    }
+    if pad > 0 {
+        h.extend(std::iter::repeat_n('#', pad - 1));
+        h.push('\n');
+    }
+    h.push('\n');
+    debug_assert_eq!(h.len() % 8, 0);
+    Ok(h)
+}
+
+/// Writes `volume` to `path` as an attached NRRD (temp file in the same directory, renamed).
+pub fn write_nrrd(
+    path: &Path,
+    volume: &RectilinearVolume,
+    encoding: NrrdEncoding,
+) -> Result<(), FormatError> {
+    let header = header_text(path, volume, encoding)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let io = |e: std::io::Error| FormatError::io(path, e);
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(io)?;
+    {
+        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+        w.write_all(header.as_bytes()).map_err(io)?;
+        let bytes: &[u8] =
+            volume_core::dispatch_voxels!(&volume.data, b => bytemuck::cast_slice(b.as_slice()));
+        match encoding {
+            NrrdEncoding::Raw => w.write_all(bytes).map_err(io)?,
+            NrrdEncoding::Gzip => {
+                let mut gz = flate2::write::GzEncoder::new(&mut w, flate2::Compression::new(6));
+                gz.write_all(bytes).map_err(io)?;
+                gz.finish().map_err(io)?;
+            }
+        }
+        w.flush().map_err(io)?;
+    }
+    tmp.as_file().sync_all().map_err(io)?;
+    tmp.persist(path).map_err(|e| io(e.error))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Dataset;
+    use crate::nrrd::read_nrrd;
+    use glam::{DAffine3, DMat3};
+    use volume_core::Grid;
+
+    fn sample(grid: Grid) -> RectilinearVolume {
+        let n = grid.voxel_count();
+        let data: Vec<i16> = (0..n).map(|i| (i as i16) * 37 - 500).collect();
+        RectilinearVolume::new(grid, data.into()).unwrap()
+    }
+
+    fn read_volume(p: &Path) -> RectilinearVolume {
+        match read_nrrd(p).unwrap() {
+            Dataset::Volume(v) => v,
+            Dataset::Series(_) => panic!("volume expected"),
+        }
+    }
+
+    #[test]
+    fn round_trips_uniform_volumes_in_both_encodings() {
+        let dir = tempfile::tempdir().unwrap();
+        let v = sample(Grid::uniform([5, 4, 3], [-1.5, 0.25, 7.0], [0.3, 0.7, 1.1]).unwrap());
+        for (enc, name) in [
+            (NrrdEncoding::Raw, "a.nrrd"),
+            (NrrdEncoding::Gzip, "b.nrrd"),
+        ] {
+            let p = dir.path().join(name);
+            write_nrrd(&p, &v, enc).unwrap();
+            let r = read_volume(&p);
+            assert_eq!(r.grid, v.grid);
+            assert_eq!(r.data.is_shared(), enc == NrrdEncoding::Raw);
+            for k in 0..3 {
+                for j in 0..4 {
+                    for i in 0..5 {
+                        assert_eq!(r.value_f64(i, j, k), v.value_f64(i, j, k));
+                    }
+                }
+            }
+        }
+        // No temporary files left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 2, "{names:?}");
+    }
+
+    #[test]
+    fn round_trips_oriented_volumes_through_space_directions() {
+        let dir = tempfile::tempdir().unwrap();
+        let rot = DMat3::from_rotation_z(0.3) * DMat3::from_rotation_x(-0.2);
+        let wfg = DAffine3::from_mat3_translation(rot, DVec3::new(10.0, -5.0, 2.5));
+        let axes = [0.5, 1.0, 2.0].map(|s| AxisCoords::Uniform {
+            origin: 0.0,
+            spacing: s,
+        });
+        let v = sample(Grid::new([3, 3, 2], axes, Some(wfg)).unwrap());
+        let p = dir.path().join("o.nrrd");
+        write_nrrd(&p, &v, NrrdEncoding::Raw).unwrap();
+        let r = read_volume(&p);
+        let m = r.grid.world_from_grid().expect("oriented");
+        for (i, j, k) in [(0, 0, 0), (2, 1, 1), (1, 2, 0)] {
+            let want = wfg.transform_point3(v.grid.grid_position(i, j, k));
+            let got = m.transform_point3(r.grid.grid_position(i, j, k));
+            assert!((want - got).length() < 1e-12, "{want} vs {got}");
+        }
+    }
+
+    #[test]
+    fn rejects_explicit_coordinates() {
+        let dir = tempfile::tempdir().unwrap();
+        let u = AxisCoords::Uniform {
+            origin: 0.0,
+            spacing: 1.0,
+        };
+        let e = AxisCoords::Explicit(vec![0.0, 1.0, 3.0].into());
+        let v = sample(Grid::new([2, 3, 2], [u.clone(), e, u], None).unwrap());
+        let p = dir.path().join("x.nrrd");
+        let err = write_nrrd(&p, &v, NrrdEncoding::Raw).unwrap_err();
+        assert!(
+            matches!(&err, FormatError::Unsupported { field, reason, .. } if field == "spacings" && reason.contains("axis 1")),
+            "{err}"
+        );
+        assert!(!p.exists());
+    }
+}
