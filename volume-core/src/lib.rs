@@ -20,6 +20,7 @@ pub mod math;
 pub mod render;
 pub mod series;
 pub mod stats;
+pub mod tet;
 pub mod volume;
 pub mod voxel;
 
