@@ -1,0 +1,534 @@
+//! [`IsoScene`] for rectilinear volumes: the implicit min/max kd-tree
+//! ([`crate::kdtree`]) plus the chosen cell intersector ([`crate::intersect`]).
+//!
+//! [`GridScene<T>`] is the typed scene (voxels in their native type `T`); [`AnyGridScene`]
+//! holds one for whatever type a volume has and implements [`IsoScene`] itself (one
+//! well-predicted `match` per ray), or hands the typed scene to a [`SceneVisitor`] so a
+//! renderer runs fully monomorphized code ([`AnyGridScene::visit`]).
+//! [`GridScene::dda`] gives the brute-force twin over the same cells ([`crate::dda`]).
+//!
+//! Rays are mapped into traversal units once per ray ([`TraversalFrame::to_local`]);
+//! `world_from_grid` is honoured, and `t` is preserved (the direction is not renormalised),
+//! so `Hit::t` is in the caller's ray units.
+//!
+//! Normals (thesis seed 004 §6.4): central differences at the 8 corners of the hit cell
+//! (one-sided at the volume border or next to a void neighbour), trilinearly interpolated at
+//! the hit ("derivative first", as the thesis suggests), mapped to world space with the
+//! inverse transpose of `world_from_grid` and the per-axis spacing. If that gradient
+//! vanishes, the analytic gradient of the cell's trilinear interpolant is used; if that
+//! vanishes too (a constant cell), the normal faces the ray. Normals are never NaN and
+//! point towards increasing values.
+
+use std::time::Duration;
+
+use glam::{DVec3, Vec3};
+
+use crate::dda::DdaScene;
+use crate::error::VolumeError;
+use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
+use crate::kdtree::{KdTree, KdTreeConfig};
+use crate::math::{Aabb, Ray};
+use crate::render::{Hit, IsoScene, Stats};
+use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
+use crate::voxel::{Voxel, VoxelType};
+
+/// A rectilinear volume of voxel type `T`, ready for ray casting.
+#[derive(Clone)]
+pub struct GridScene<T: Voxel> {
+    voxels: VoxelBuffer<T>,
+    dims: [usize; 3],
+    frame: TraversalFrame,
+    tree: KdTree<T>,
+    intersector: Intersector,
+}
+
+impl<T: Voxel> std::fmt::Debug for GridScene<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GridScene")
+            .field("voxel_type", &T::TYPE)
+            .field("dims", &self.dims)
+            .field("intersector", &self.intersector)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<T: Voxel> GridScene<T> {
+    /// Builds the kd-tree over `voxels` laid out on `grid`.
+    pub fn new(
+        grid: &Grid,
+        voxels: VoxelBuffer<T>,
+        intersector: Intersector,
+        config: KdTreeConfig,
+    ) -> Result<Self, VolumeError> {
+        if voxels.len() != grid.voxel_count() {
+            return Err(VolumeError::LengthMismatch {
+                dims: grid.dims(),
+                expected: grid.voxel_count(),
+                actual: voxels.len(),
+            });
+        }
+        let frame = TraversalFrame::new(grid);
+        let tree = KdTree::build(voxels.as_slice(), grid.dims(), &frame, config);
+        Ok(Self {
+            voxels,
+            dims: grid.dims(),
+            frame,
+            tree,
+            intersector,
+        })
+    }
+
+    pub fn intersector(&self) -> Intersector {
+        self.intersector
+    }
+
+    pub fn set_intersector(&mut self, intersector: Intersector) {
+        self.intersector = intersector;
+    }
+
+    pub fn tree(&self) -> &KdTree<T> {
+        &self.tree
+    }
+
+    pub fn frame(&self) -> &TraversalFrame {
+        &self.frame
+    }
+
+    pub fn voxels(&self) -> &[T] {
+        self.voxels.as_slice()
+    }
+
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Replaces all voxels (a new time step with the same dims): refit, not rebuild.
+    pub fn replace_voxels(&mut self, voxels: VoxelBuffer<T>) -> Result<(), VolumeError> {
+        let expected = self.dims.iter().product();
+        if voxels.len() != expected {
+            return Err(VolumeError::LengthMismatch {
+                dims: self.dims,
+                expected,
+                actual: voxels.len(),
+            });
+        }
+        self.voxels = voxels;
+        let hi = self.dims.map(|d| d - 1);
+        self.tree.refit_region(self.voxels.as_slice(), [0; 3], hi);
+        Ok(())
+    }
+
+    /// Edits the voxels in place, then refits the nodes over the inclusive voxel box
+    /// `[lo, hi]`, which must cover every voxel `edit` changes (thesis §7.6).
+    pub fn edit_voxels(&mut self, lo: [usize; 3], hi: [usize; 3], edit: impl FnOnce(&mut [T])) {
+        edit(self.voxels.make_mut());
+        let hi = [0, 1, 2].map(|a| hi[a].min(self.dims[a] - 1));
+        self.tree.refit_region(self.voxels.as_slice(), lo, hi);
+    }
+
+    /// New sample coordinates or orientation with the same dims: only the split tables
+    /// change (thesis §7.6).
+    pub fn set_grid(&mut self, grid: &Grid) -> Result<(), VolumeError> {
+        if grid.dims() != self.dims {
+            return Err(VolumeError::LengthMismatch {
+                dims: grid.dims(),
+                expected: grid.voxel_count(),
+                actual: self.voxels.len(),
+            });
+        }
+        self.frame = TraversalFrame::new(grid);
+        self.tree.set_coordinates(&self.frame);
+        Ok(())
+    }
+
+    /// Tree bytes (see [`KdTree::memory_bytes`]).
+    pub fn memory_bytes(&self) -> usize {
+        self.tree.memory_bytes()
+    }
+
+    /// Tree bytes per voxel byte.
+    pub fn memory_ratio(&self) -> f64 {
+        self.tree.memory_ratio()
+    }
+
+    pub fn build_time(&self) -> Duration {
+        self.tree.build_time()
+    }
+
+    /// The brute-force 3D-DDA twin over the same cells and intersector.
+    pub fn dda(&self) -> DdaScene<'_, T> {
+        DdaScene::new(
+            &self.frame,
+            self.voxels.as_slice(),
+            self.dims,
+            self.intersector,
+        )
+    }
+
+    /// The kd-tree hit in traversal terms, with a static intersector.
+    #[inline]
+    pub fn cell_hit_with<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &LocalRay,
+        t_min: f32,
+        t_max: f32,
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<CellHit> {
+        let (t0, t1) = self.frame.clip(ray, t_min, t_max)?;
+        self.tree.first_hit(
+            &self.frame,
+            self.voxels.as_slice(),
+            ray,
+            t0,
+            t1,
+            isos,
+            intersector,
+            stats,
+        )
+    }
+
+    /// [`IsoScene::first_hit`] with a static intersector `C` (no per-ray dispatch).
+    #[inline]
+    pub fn first_hit_with<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<Hit> {
+        stats.ray();
+        let local = self.frame.to_local(ray);
+        let isos = IsoSet::new(isovalues);
+        let h = self.cell_hit_with(&local, t_min, t_max, &isos, intersector, stats)?;
+        Some(make_hit(
+            &self.frame,
+            self.voxels.as_slice(),
+            self.dims,
+            &local,
+            ray,
+            h,
+        ))
+    }
+}
+
+/// Turns a cell hit into a [`Hit`] with a world-space normal.
+pub(crate) fn make_hit<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    local: &LocalRay,
+    world: &Ray,
+    h: CellHit,
+) -> Hit {
+    let (lo, hi) = frame.cell_box(h.cell);
+    let p = local.origin + local.dir * h.t;
+    let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
+    let normal = normal_at(frame, voxels, dims, h.cell, uvw)
+        .unwrap_or_else(|| (-world.dir).normalize_or(Vec3::Z));
+    Hit {
+        t: h.t,
+        surface: h.surface,
+        normal,
+    }
+}
+
+/// World normal at cell-local position `uvw` of `cell` (see the module docs).
+pub fn normal_at<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> Option<Vec3> {
+    let value =
+        |i: usize, j: usize, k: usize| -> f64 { voxels[i + dims[0] * (j + dims[1] * k)].to_f64() };
+    let uvw = uvw.as_dvec3();
+    let mut grad = DVec3::ZERO;
+    let mut corner_vals = [0.0f64; 8];
+    for c in 0..8 {
+        let v = [
+            cell[0] + (c & 1),
+            cell[1] + ((c >> 1) & 1),
+            cell[2] + ((c >> 2) & 1),
+        ];
+        let f0 = value(v[0], v[1], v[2]);
+        corner_vals[c] = f0;
+        let mut g = DVec3::ZERO;
+        for a in 0..3 {
+            let sample = |idx: usize| {
+                let mut w = v;
+                w[a] = idx;
+                let f = value(w[0], w[1], w[2]);
+                f.is_finite().then_some((f, f64::from(frame.pos[a][idx])))
+            };
+            let minus = if v[a] > 0 { sample(v[a] - 1) } else { None };
+            let plus = if v[a] + 1 < dims[a] {
+                sample(v[a] + 1)
+            } else {
+                None
+            };
+            let here = f0
+                .is_finite()
+                .then_some((f0, f64::from(frame.pos[a][v[a]])));
+            g[a] = match (minus, here, plus) {
+                (Some((fm, xm)), _, Some((fp, xp))) => (fp - fm) / (xp - xm),
+                (Some((fm, xm)), Some((fh, xh)), None) => (fh - fm) / (xh - xm),
+                (None, Some((fh, xh)), Some((fp, xp))) => (fp - fh) / (xp - xh),
+                _ => 0.0,
+            };
+        }
+        let w = (if c & 1 == 1 { uvw.x } else { 1.0 - uvw.x })
+            * (if c & 2 == 2 { uvw.y } else { 1.0 - uvw.y })
+            * (if c & 4 == 4 { uvw.z } else { 1.0 - uvw.z });
+        grad += g * w;
+    }
+    if grad.is_finite()
+        && let Some(n) = frame.world_normal(grad)
+    {
+        return Some(n);
+    }
+    // The analytic gradient of the cell's trilinear interpolant.
+    let (lo, hi) = frame.cell_box(cell);
+    let width = (hi - lo).as_dvec3();
+    let mut g = DVec3::ZERO;
+    for (c, f) in corner_vals.iter().enumerate() {
+        let bits = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+        for a in 0..3 {
+            let mut term = if bits[a] == 1 { 1.0 } else { -1.0 } / width[a];
+            for b in 0..3 {
+                if b != a {
+                    term *= if bits[b] == 1 { uvw[b] } else { 1.0 - uvw[b] };
+                }
+            }
+            g[a] += f * term;
+        }
+    }
+    if g.is_finite() {
+        frame.world_normal(g)
+    } else {
+        None
+    }
+}
+
+impl<T: Voxel> IsoScene for GridScene<T> {
+    fn world_bounds(&self) -> Aabb {
+        self.frame.world_bounds()
+    }
+
+    #[inline]
+    fn first_hit<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> Option<Hit> {
+        crate::dispatch_intersector!(self.intersector, c => self.first_hit_with(ray, t_min, t_max, isovalues, c, stats))
+    }
+
+    fn first_hit_packet<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isovalues: &[f32],
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        crate::dispatch_intersector!(self.intersector, c => {
+            let isos = IsoSet::new(isovalues);
+            for (i, ray) in rays.iter().enumerate() {
+                stats.ray();
+                let local = self.frame.to_local(ray);
+                out[i] = self
+                    .cell_hit_with(&local, t_min[i], t_max[i], &isos, c, stats)
+                    .map(|h| make_hit(&self.frame, self.voxels.as_slice(), self.dims, &local, ray, h));
+            }
+        });
+    }
+}
+
+/// Receives a concretely typed scene (see [`AnyGridScene::visit`]).
+pub trait SceneVisitor {
+    type Output;
+    fn visit<S: IsoScene>(self, scene: &S) -> Self::Output;
+}
+
+/// A [`GridScene`] of whichever voxel type the volume has.
+#[derive(Debug, Clone)]
+pub enum AnyGridScene {
+    U8(GridScene<u8>),
+    I8(GridScene<i8>),
+    U16(GridScene<u16>),
+    I16(GridScene<i16>),
+    U32(GridScene<u32>),
+    I32(GridScene<i32>),
+    F32(GridScene<f32>),
+    F64(GridScene<f64>),
+}
+
+/// Runs `$body` with `$s` bound to the typed [`GridScene`] inside an [`AnyGridScene`].
+#[macro_export]
+macro_rules! dispatch_grid_scene {
+    ($scene:expr, $s:ident => $body:expr) => {
+        match $scene {
+            $crate::grid_scene::AnyGridScene::U8($s) => $body,
+            $crate::grid_scene::AnyGridScene::I8($s) => $body,
+            $crate::grid_scene::AnyGridScene::U16($s) => $body,
+            $crate::grid_scene::AnyGridScene::I16($s) => $body,
+            $crate::grid_scene::AnyGridScene::U32($s) => $body,
+            $crate::grid_scene::AnyGridScene::I32($s) => $body,
+            $crate::grid_scene::AnyGridScene::F32($s) => $body,
+            $crate::grid_scene::AnyGridScene::F64($s) => $body,
+        }
+    };
+}
+
+impl AnyGridScene {
+    /// Builds the scene for `volume` with the default tree layout.
+    pub fn new(volume: &RectilinearVolume, intersector: Intersector) -> Self {
+        Self::with_config(volume, intersector, KdTreeConfig::default())
+    }
+
+    pub fn with_config(
+        volume: &RectilinearVolume,
+        intersector: Intersector,
+        config: KdTreeConfig,
+    ) -> Self {
+        let g = &volume.grid;
+        // Lengths were checked when the volume was made.
+        let build = |r: Result<Self, VolumeError>| r.expect("volume length checked");
+        match &volume.data {
+            VoxelData::U8(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::U8))
+            }
+            VoxelData::I8(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::I8))
+            }
+            VoxelData::U16(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::U16))
+            }
+            VoxelData::I16(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::I16))
+            }
+            VoxelData::U32(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::U32))
+            }
+            VoxelData::I32(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::I32))
+            }
+            VoxelData::F32(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::F32))
+            }
+            VoxelData::F64(b) => {
+                build(GridScene::new(g, b.clone(), intersector, config).map(Self::F64))
+            }
+        }
+    }
+
+    pub fn voxel_type(&self) -> VoxelType {
+        match self {
+            Self::U8(_) => VoxelType::U8,
+            Self::I8(_) => VoxelType::I8,
+            Self::U16(_) => VoxelType::U16,
+            Self::I16(_) => VoxelType::I16,
+            Self::U32(_) => VoxelType::U32,
+            Self::I32(_) => VoxelType::I32,
+            Self::F32(_) => VoxelType::F32,
+            Self::F64(_) => VoxelType::F64,
+        }
+    }
+
+    pub fn intersector(&self) -> Intersector {
+        dispatch_grid_scene!(self, s => s.intersector())
+    }
+
+    /// Changing the intersector costs nothing (no rebuild).
+    pub fn set_intersector(&mut self, intersector: Intersector) {
+        dispatch_grid_scene!(self, s => s.set_intersector(intersector));
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        dispatch_grid_scene!(self, s => s.memory_bytes())
+    }
+
+    pub fn memory_ratio(&self) -> f64 {
+        dispatch_grid_scene!(self, s => s.memory_ratio())
+    }
+
+    pub fn build_time(&self) -> Duration {
+        dispatch_grid_scene!(self, s => s.build_time())
+    }
+
+    pub fn dims(&self) -> [usize; 3] {
+        dispatch_grid_scene!(self, s => s.dims())
+    }
+
+    /// Switches to another volume (a time step). Same dims and voxel type: the tree is
+    /// refit (thesis §7.6) and the split tables are recomputed; otherwise it is rebuilt.
+    pub fn update_volume(&mut self, volume: &RectilinearVolume) {
+        let intersector = self.intersector();
+        let same_dims = volume.dims() == self.dims();
+        let refit = match (&mut *self, &volume.data) {
+            (Self::U8(s), VoxelData::U8(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::I8(s), VoxelData::I8(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::U16(s), VoxelData::U16(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::I16(s), VoxelData::I16(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::U32(s), VoxelData::U32(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::I32(s), VoxelData::I32(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::F32(s), VoxelData::F32(b)) if same_dims => s.replace_voxels(b.clone()),
+            (Self::F64(s), VoxelData::F64(b)) if same_dims => s.replace_voxels(b.clone()),
+            _ => Err(VolumeError::EmptyDims { dims: [0; 3] }),
+        };
+        let ok = refit.is_ok()
+            && dispatch_grid_scene!(&mut *self, s => s.set_grid(&volume.grid).is_ok());
+        if !ok {
+            *self = Self::new(volume, intersector);
+        }
+    }
+
+    /// Hands the typed kd-tree scene to `visitor` (monomorphized traversal).
+    pub fn visit<V: SceneVisitor>(&self, visitor: V) -> V::Output {
+        dispatch_grid_scene!(self, s => visitor.visit(s))
+    }
+
+    /// Hands the typed brute-force DDA twin to `visitor`.
+    pub fn visit_dda<V: SceneVisitor>(&self, visitor: V) -> V::Output {
+        dispatch_grid_scene!(self, s => visitor.visit(&s.dda()))
+    }
+}
+
+impl IsoScene for AnyGridScene {
+    fn world_bounds(&self) -> Aabb {
+        dispatch_grid_scene!(self, s => s.world_bounds())
+    }
+
+    #[inline]
+    fn first_hit<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> Option<Hit> {
+        dispatch_grid_scene!(self, s => s.first_hit(ray, t_min, t_max, isovalues, stats))
+    }
+
+    fn first_hit_packet<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isovalues: &[f32],
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        dispatch_grid_scene!(self, s => s.first_hit_packet(rays, t_min, t_max, isovalues, out, stats));
+    }
+}

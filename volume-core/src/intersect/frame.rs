@@ -1,0 +1,255 @@
+//! The traversal frame: where rays meet the cells of a rectilinear grid.
+//!
+//! World rays are mapped once per ray into *traversal units* (`grid_from_world`, then the
+//! grid origin is subtracted in `f64`, then the per-axis scale): for a uniform axis the
+//! traversal coordinate of sample `i` is exactly `i`, so traversal runs in cell units however
+//! far the volume sits from the origin (origin 1e6) and however tiny or huge the spacing is.
+//! Explicit (rectilinear) axes are scaled by their mean spacing, so their samples sit close
+//! to `i` as well. The mapping is affine, so the ray parameter `t` is preserved: a hit at `t`
+//! in traversal space is the hit at `t` along the world ray (the direction is not
+//! renormalised). The per-axis sample tables [`TraversalFrame::pos`] are the kd-tree's split
+//! positions (thesis seed 004 §7.3.1); a spacing edit rebuilds only them (§7.6).
+
+use glam::{DAffine3, DMat3, DVec3, Vec3};
+
+use crate::math::{Aabb, Ray};
+use crate::volume::{AxisCoords, Grid};
+
+/// A ray in traversal units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalRay {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// `1 / dir` (`±inf` for zero components; traversal tests `dir == 0` explicitly).
+    pub inv_dir: Vec3,
+}
+
+impl LocalRay {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self {
+            origin,
+            dir,
+            inv_dir: dir.recip(),
+        }
+    }
+}
+
+/// Grid geometry in traversal units plus the transforms in and out of world space.
+#[derive(Debug, Clone)]
+pub struct TraversalFrame {
+    grid_from_world: Option<DAffine3>,
+    origin_grid: DVec3,
+    units_per_grid: DVec3,
+    /// Sample positions per axis in traversal units (`pos[a][0] == 0`).
+    pub pos: [Box<[f32]>; 3],
+    cells: [usize; 3],
+    /// Maps a gradient in traversal units to a world-space gradient
+    /// (`M⁻ᵀ · diag(units_per_grid)`, with `M` the linear part of `world_from_grid`).
+    world_gradient_from_local: DMat3,
+    world_bounds: Aabb,
+}
+
+impl TraversalFrame {
+    pub fn new(grid: &Grid) -> Self {
+        let dims = grid.dims();
+        let cells = grid.cell_dims();
+        let origin_grid = grid.origin();
+        let mut units = [1.0f64; 3];
+        let pos: [Box<[f32]>; 3] = std::array::from_fn(|a| match grid.axis(a) {
+            AxisCoords::Uniform { spacing, .. } => {
+                units[a] = 1.0 / spacing;
+                (0..dims[a]).map(|i| i as f32).collect()
+            }
+            AxisCoords::Explicit(c) => {
+                let span = c[c.len() - 1] - c[0];
+                if cells[a] > 0 && span > 0.0 {
+                    units[a] = cells[a] as f64 / span;
+                }
+                c.iter().map(|x| ((x - c[0]) * units[a]) as f32).collect()
+            }
+        });
+        let units_per_grid = DVec3::from(units);
+        let m = grid
+            .world_from_grid()
+            .map_or(DMat3::IDENTITY, |w| w.matrix3);
+        let world_gradient_from_local =
+            m.inverse().transpose() * DMat3::from_diagonal(units_per_grid);
+        let (lo, hi) = grid.grid_bounds();
+        let world_bounds = match grid.world_from_grid() {
+            None => Aabb::new(lo.as_vec3(), hi.as_vec3()),
+            Some(w) => {
+                let mut b = Aabb::EMPTY;
+                for c in 0..8 {
+                    let p = DVec3::new(
+                        if c & 1 == 0 { lo.x } else { hi.x },
+                        if c & 2 == 0 { lo.y } else { hi.y },
+                        if c & 4 == 0 { lo.z } else { hi.z },
+                    );
+                    b = b.grow(w.transform_point3(p).as_vec3());
+                }
+                b
+            }
+        };
+        Self {
+            grid_from_world: grid.world_from_grid().map(|w| w.inverse()),
+            origin_grid,
+            units_per_grid,
+            pos,
+            cells,
+            world_gradient_from_local,
+            world_bounds,
+        }
+    }
+
+    /// Cells per axis (`dims − 1`).
+    pub fn cells(&self) -> [usize; 3] {
+        self.cells
+    }
+
+    /// True when some axis has no cell (a 1-sample axis): such a volume has no surface.
+    pub fn is_empty(&self) -> bool {
+        self.cells.contains(&0)
+    }
+
+    pub fn world_bounds(&self) -> Aabb {
+        self.world_bounds
+    }
+
+    /// The world ray in traversal units (f64 transform, then f32).
+    #[inline]
+    pub fn to_local(&self, ray: &Ray) -> LocalRay {
+        let mut o = ray.origin.as_dvec3();
+        let mut d = ray.dir.as_dvec3();
+        if let Some(inv) = self.grid_from_world {
+            o = inv.transform_point3(o);
+            d = inv.transform_vector3(d);
+        }
+        let o = (o - self.origin_grid) * self.units_per_grid;
+        let d = d * self.units_per_grid;
+        LocalRay::new(o.as_vec3(), d.as_vec3())
+    }
+
+    /// The ray's overlap with the volume bounds, clipped to `[t_min, t_max]`.
+    #[inline]
+    pub fn clip(&self, ray: &LocalRay, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+        if self.is_empty() {
+            return None;
+        }
+        let hi = Vec3::new(
+            self.pos[0][self.cells[0]],
+            self.pos[1][self.cells[1]],
+            self.pos[2][self.cells[2]],
+        );
+        slab(ray, Vec3::ZERO, hi, t_min, t_max)
+    }
+
+    /// Lower and upper corner of cell `c` in traversal units.
+    #[inline(always)]
+    pub fn cell_box(&self, c: [usize; 3]) -> (Vec3, Vec3) {
+        (
+            Vec3::new(self.pos[0][c[0]], self.pos[1][c[1]], self.pos[2][c[2]]),
+            Vec3::new(
+                self.pos[0][c[0] + 1],
+                self.pos[1][c[1] + 1],
+                self.pos[2][c[2] + 1],
+            ),
+        )
+    }
+
+    /// World-space unit normal from a gradient in traversal units, or `None` if it is zero
+    /// or not finite.
+    pub fn world_normal(&self, grad_local: DVec3) -> Option<Vec3> {
+        let g = self.world_gradient_from_local * grad_local;
+        let n = g.normalize_or_zero();
+        (n != DVec3::ZERO && n.is_finite()).then(|| n.as_vec3())
+    }
+
+    /// The cell along axis `a` that contains traversal coordinate `x` (clamped to the grid).
+    pub fn locate(&self, a: usize, x: f32) -> usize {
+        let n = self.cells[a];
+        if n == 0 {
+            return 0;
+        }
+        // `pos` is increasing; the last sample with pos <= x starts the cell.
+        let p = &self.pos[a];
+        let i = p.partition_point(|&s| s <= x);
+        i.saturating_sub(1).min(n - 1)
+    }
+}
+
+/// Slab test of `ray` against `[lo, hi]`, clipped to `[t_min, t_max]`.
+///
+/// A zero direction component is decided by the origin alone (inside the closed slab: all
+/// `t`; outside: none), so a ray lying in a face plane is inside; no `0·inf` NaN arises.
+/// Both adjacent cells compute a shared plane's `t` from the same operands, so consecutive
+/// cells tile the ray without gaps.
+#[inline(always)]
+pub fn slab(ray: &LocalRay, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+    let mut t0 = t_min;
+    let mut t1 = t_max;
+    for a in 0..3 {
+        let d = ray.dir[a];
+        let o = ray.origin[a];
+        if d == 0.0 {
+            if !(o >= lo[a] && o <= hi[a]) {
+                return None;
+            }
+        } else {
+            let inv = ray.inv_dir[a];
+            let ta = (lo[a] - o) * inv;
+            let tb = (hi[a] - o) * inv;
+            let (n, f) = if d > 0.0 { (ta, tb) } else { (tb, ta) };
+            t0 = t0.max(n);
+            t1 = t1.min(f);
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniform_far_origin_maps_to_index_units_and_keeps_t() {
+        let g = Grid::uniform([5, 4, 3], [1e6, -2e6, 3.0], [0.5, 2.0, 1e-3]).unwrap();
+        let f = TraversalFrame::new(&g);
+        let ray = Ray::new(Vec3::new(1e6 + 1.0, -2e6 + 4.0, 3.001), Vec3::X);
+        let l = f.to_local(&ray);
+        assert!((l.origin - Vec3::new(2.0, 2.0, 1.0)).abs().max_element() < 1e-3);
+        assert_eq!(l.dir, Vec3::new(2.0, 0.0, 0.0));
+        assert_eq!(f.pos[1].as_ref(), &[0.0, 1.0, 2.0, 3.0]);
+        // Ray parameter preserved: t = 0.5 world units = one sample along x.
+        let (t0, t1) = f.clip(&l, 0.0, f32::INFINITY).unwrap();
+        assert_eq!(t0, 0.0);
+        assert!((t1 - 1.0).abs() < 1e-6);
+        assert_eq!(f.locate(0, 2.5), 2);
+        assert_eq!(f.locate(0, 9.0), 3);
+        assert_eq!(f.locate(0, -1.0), 0);
+    }
+
+    #[test]
+    fn world_normal_respects_anisotropic_spacing_and_orientation() {
+        // f = x_grid (world units); with spacing 2 along x, one traversal unit is 2 mm, so
+        // the local gradient (2, 0, 0) is the world gradient (1, 0, 0).
+        let g = Grid::uniform([3, 3, 3], [0.0; 3], [2.0, 1.0, 1.0]).unwrap();
+        let f = TraversalFrame::new(&g);
+        let n = f.world_normal(DVec3::new(2.0, 0.0, 0.0)).unwrap();
+        assert!((n - Vec3::X).length() < 1e-6);
+        // Rotated 90° about z: grid x becomes world y.
+        let rot = DAffine3::from_rotation_z(std::f64::consts::FRAC_PI_2);
+        let g = Grid::new([3, 3, 3], g.axes().clone(), Some(rot)).unwrap();
+        let f = TraversalFrame::new(&g);
+        let n = f.world_normal(DVec3::new(2.0, 0.0, 0.0)).unwrap();
+        assert!((n - Vec3::Y).length() < 1e-6);
+        assert!(f.world_normal(DVec3::ZERO).is_none());
+    }
+
+    #[test]
+    fn slab_handles_rays_in_face_planes() {
+        let r = LocalRay::new(Vec3::new(-1.0, 1.0, 0.5), Vec3::X);
+        assert_eq!(slab(&r, Vec3::ZERO, Vec3::ONE, 0.0, 10.0), Some((1.0, 2.0)));
+        let r = LocalRay::new(Vec3::new(-1.0, 1.5, 0.5), Vec3::X);
+        assert_eq!(slab(&r, Vec3::ZERO, Vec3::ONE, 0.0, 10.0), None);
+    }
+}

@@ -1,0 +1,591 @@
+//! The five cell intersectors and the cubic they share.
+//!
+//! Along the ray segment `[t_near, t_far]` inside a cell, reparameterised to `s ∈ [0, 1]`,
+//! the trilinear interpolant minus the isovalue is the cubic
+//! `f(s) = a·s³ + b·s² + c·s + d` (thesis seed 004 §6.5.2, §7.2.2). Its coefficients are
+//! built in cell-local coordinates by collapsing the cell one axis at a time
+//! (z: 4 linear functions, y: 2 quadratics, x: 1 cubic), each step a lerp between two
+//! corners, which keeps every intermediate within the corner range.
+
+use crate::voxel::{Voxel, VoxelType};
+
+use super::{CellIntersector, CellSegment};
+
+/// Corner differences `v − iso` as `f32`, scaled by an exact power of two (or `1/max` when
+/// the range leaves `f32`) so that the largest lies in a safe range: values near `f32::MAX`
+/// (1e30…3e38) and denormals both become ordinary numbers. Scaling does not move roots.
+/// Returns the differences and their largest magnitude (0: the cell equals the isovalue).
+#[inline(always)]
+pub(crate) fn corner_diffs<T: Voxel>(corners: &[T; 8], iso: f32) -> ([f32; 8], f32) {
+    const LO: f32 = 1.0 / (1u64 << 40) as f32;
+    const HI: f32 = (1u64 << 40) as f32;
+    let wide = matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32);
+    if !wide {
+        let g = corners.map(|v| v.to_f32() - iso);
+        let m = g.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+        if m == 0.0 || (m >= LO && m <= HI) {
+            return (g, m);
+        }
+    }
+    // Rare path: 32-bit integers and f64 (which f32 cannot hold exactly) and extreme ranges.
+    let iso = f64::from(iso);
+    let g = corners.map(|v| v.to_f64() - iso);
+    let m = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 {
+        return ([0.0; 8], 0.0);
+    }
+    let scale = if m >= f64::from(LO) && m <= f64::from(HI) {
+        1.0
+    } else {
+        1.0 / m
+    };
+    let g = g.map(|x| (x * scale) as f32);
+    let m = g.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    (g, m)
+}
+
+/// Cubic coefficients `[a, b, c, d]` of `Σ g_i w_i(p0 + s·dp)` (corner index `x + 2y + 4z`).
+#[inline(always)]
+pub(crate) fn cubic_f32(g: &[f32; 8], p0: [f32; 3], dp: [f32; 3]) -> [f32; 4] {
+    // z: four linear functions al + be·s.
+    let mut al = [0.0f32; 4];
+    let mut be = [0.0f32; 4];
+    for xy in 0..4 {
+        let (g0, g1) = (g[xy], g[xy + 4]);
+        let dz = g1 - g0;
+        al[xy] = g0 + dz * p0[2];
+        be[xy] = dz * dp[2];
+    }
+    // y: two quadratics q0 + q1·s + q2·s².
+    let mut q = [[0.0f32; 3]; 2];
+    for x in 0..2 {
+        let (a0, b0, a1, b1) = (al[x], be[x], al[x + 2], be[x + 2]);
+        let (da, db) = (a1 - a0, b1 - b0);
+        q[x] = [a0 + da * p0[1], b0 + db * p0[1] + da * dp[1], db * dp[1]];
+    }
+    // x: one cubic.
+    let [h0, h1] = q;
+    let dh = [h1[0] - h0[0], h1[1] - h0[1], h1[2] - h0[2]];
+    [
+        dh[2] * dp[0],
+        h0[2] + dh[2] * p0[0] + dh[1] * dp[0],
+        h0[1] + dh[1] * p0[0] + dh[0] * dp[0],
+        h0[0] + dh[0] * p0[0],
+    ]
+}
+
+/// `f64` twin of [`cubic_f32`].
+#[inline]
+pub(crate) fn cubic_f64(g: &[f64; 8], p0: [f64; 3], dp: [f64; 3]) -> [f64; 4] {
+    let mut al = [0.0f64; 4];
+    let mut be = [0.0f64; 4];
+    for xy in 0..4 {
+        let (g0, g1) = (g[xy], g[xy + 4]);
+        let dz = g1 - g0;
+        al[xy] = g0 + dz * p0[2];
+        be[xy] = dz * dp[2];
+    }
+    let mut q = [[0.0f64; 3]; 2];
+    for x in 0..2 {
+        let (a0, b0, a1, b1) = (al[x], be[x], al[x + 2], be[x + 2]);
+        let (da, db) = (a1 - a0, b1 - b0);
+        q[x] = [a0 + da * p0[1], b0 + db * p0[1] + da * dp[1], db * dp[1]];
+    }
+    let [h0, h1] = q;
+    let dh = [h1[0] - h0[0], h1[1] - h0[1], h1[2] - h0[2]];
+    [
+        dh[2] * dp[0],
+        h0[2] + dh[2] * p0[0] + dh[1] * dp[0],
+        h0[1] + dh[1] * p0[0] + dh[0] * dp[0],
+        h0[0] + dh[0] * p0[0],
+    ]
+}
+
+#[inline(always)]
+fn eval(k: &[f32; 4], s: f32) -> f32 {
+    ((k[0] * s + k[1]) * s + k[2]) * s + k[3]
+}
+
+#[inline(always)]
+fn eval64(k: &[f64; 4], s: f64) -> f64 {
+    ((k[0] * s + k[1]) * s + k[2]) * s + k[3]
+}
+
+/// The cubic of a cell segment for one isovalue, or `Err(())` for a cell that equals the
+/// isovalue everywhere (the whole segment lies on the surface: the hit is its entry).
+#[inline(always)]
+fn setup<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Result<([f32; 4], f32), ()> {
+    let (g, gmax) = corner_diffs(corners, iso);
+    if gmax == 0.0 {
+        return Err(());
+    }
+    let (p0, dp) = seg.local_f32();
+    Ok((cubic_f32(&g, p0, dp), gmax))
+}
+
+/// Regula falsi on `[s0, s1]` with `f(s0) = f0`, `f(s1) = f1` of opposite signs.
+#[inline(always)]
+fn refine(k: &[f32; 4], mut s0: f32, mut f0: f32, mut s1: f32, mut f1: f32, n: u32) -> f32 {
+    for _ in 0..n {
+        let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
+        let fs = eval(k, s);
+        if fs == 0.0 {
+            return s;
+        }
+        if (fs > 0.0) == (f0 > 0.0) {
+            s0 = s;
+            f0 = fs;
+        } else {
+            s1 = s;
+            f1 = fs;
+        }
+    }
+    let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
+    s.clamp(s0.min(s1), s0.max(s1))
+}
+
+/// Linear: assumes `f` is linear between entry and exit (thesis §7.2.2). Misses pairs of
+/// roots (entering and leaving the surface in one cell) and tangent touches; its hit
+/// position errs by the cubic's curvature over the segment (up to a sizeable fraction of a
+/// cell on curved surfaces).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Linear;
+
+impl CellIntersector for Linear {
+    #[inline]
+    fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+        let Ok((k, _)) = setup(corners, iso, seg) else {
+            return Some(0.0);
+        };
+        let f0 = k[3];
+        let f1 = k[0] + k[1] + k[2] + k[3];
+        if f0 == 0.0 {
+            return Some(0.0);
+        }
+        if f1 == 0.0 || (f0 > 0.0) != (f1 > 0.0) {
+            return Some(f64::from((f0 / (f0 - f1)).clamp(0.0, 1.0)));
+        }
+        None
+    }
+}
+
+/// Neubauer et al.: the linear test followed by `iterations` regula-falsi steps on the cubic
+/// (thesis §7.2.2; we evaluate the cubic instead of re-interpolating, which is the same
+/// function). Misses exactly what [`Linear`] misses; each step shrinks the position error.
+#[derive(Debug, Clone, Copy)]
+pub struct Neubauer {
+    pub iterations: u32,
+}
+
+impl CellIntersector for Neubauer {
+    #[inline]
+    fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+        let Ok((k, _)) = setup(corners, iso, seg) else {
+            return Some(0.0);
+        };
+        let f0 = k[3];
+        let f1 = k[0] + k[1] + k[2] + k[3];
+        if f0 == 0.0 {
+            return Some(0.0);
+        }
+        if f1 == 0.0 {
+            return Some(1.0);
+        }
+        if (f0 > 0.0) != (f1 > 0.0) {
+            return Some(f64::from(refine(&k, 0.0, f0, 1.0, f1, self.iterations)));
+        }
+        None
+    }
+}
+
+/// Roots of `3a·s² + 2b·s + c` (the extrema of the cubic) inside `(0, 1)`, sorted.
+#[inline(always)]
+fn extrema_f32(k: &[f32; 4]) -> ([f32; 2], usize) {
+    let (qa, qb, qc) = (3.0 * k[0], 2.0 * k[1], k[2]);
+    let mut out = [0.0f32; 2];
+    let mut n = 0;
+    let mut push = |e: f32| {
+        if e > 0.0 && e < 1.0 {
+            out[n] = e;
+            n += 1;
+        }
+    };
+    if qa == 0.0 {
+        if qb != 0.0 {
+            push(-qc / qb);
+        }
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc >= 0.0 {
+            // Numerically stable pair (no cancellation between -b and sqrt).
+            let r = disc.sqrt();
+            let q = -0.5 * (qb + r.copysign(qb));
+            let (e0, e1) = if q == 0.0 {
+                (0.0, 0.0)
+            } else {
+                (q / qa, qc / q)
+            };
+            let (e0, e1) = if e0 <= e1 { (e0, e1) } else { (e1, e0) };
+            push(e0);
+            if e1 != e0 {
+                push(e1);
+            }
+        }
+    }
+    (out, n)
+}
+
+/// The exact iterative method of Listing 7.1 (thesis seed 004 §7.2.2): the extrema split
+/// `[0, 1]` into monotone pieces; the first piece whose ends differ in sign holds the first
+/// root, which regula falsi refines. "Exact" means no root is lost; the position error is
+/// that of [`EXACT_ITERATIONS`] regula-falsi steps in `f32` (typically 1e-4 cell or better,
+/// see docs/accuracy.md). An extremum where `|f| ≤ 64·ε·max|g|` counts as a touching
+/// (double) root, so tangent rays hit; near-tangent misses within that band are reported as
+/// hits (a false hit of at most that size).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Exact;
+
+/// Regula-falsi steps of [`Exact`] after the monotone piece is found.
+pub const EXACT_ITERATIONS: u32 = 6;
+
+impl CellIntersector for Exact {
+    #[inline]
+    fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+        let Ok((k, gmax)) = setup(corners, iso, seg) else {
+            return Some(0.0);
+        };
+        let f0 = k[3];
+        if f0 == 0.0 {
+            return Some(0.0);
+        }
+        let tol = 64.0 * f32::EPSILON * gmax;
+        let (ext, n) = extrema_f32(&k);
+        let (mut s_prev, mut f_prev) = (0.0f32, f0);
+        for idx in 0..=n {
+            let (s, is_extremum) = if idx < n {
+                (ext[idx], true)
+            } else {
+                (1.0, false)
+            };
+            let fs = eval(&k, s);
+            if fs == 0.0 {
+                return Some(f64::from(s));
+            }
+            if (fs > 0.0) != (f_prev > 0.0) {
+                return Some(f64::from(refine(
+                    &k,
+                    s_prev,
+                    f_prev,
+                    s,
+                    fs,
+                    EXACT_ITERATIONS,
+                )));
+            }
+            if is_extremum && fs.abs() <= tol {
+                return Some(f64::from(s));
+            }
+            s_prev = s;
+            f_prev = fs;
+        }
+        None
+    }
+}
+
+/// Schwarze's analytic cubic solver (Graphics Gems I; Cardano with the trigonometric form
+/// for three real roots) in `f32`, the smallest root in `[0, 1]` (thesis §7.2.2). Finds all
+/// roots in exact arithmetic, but in `f32` the normalisation by `a` and the
+/// `acos`/`cbrt` steps lose digits when `a` is small (nearly quadratic segments) or roots
+/// cluster, so hits can be missed or misplaced on short or nearly linear segments.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Schwarze;
+
+impl CellIntersector for Schwarze {
+    #[inline]
+    fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+        let Ok((k, _)) = setup(corners, iso, seg) else {
+            return Some(0.0);
+        };
+        let mut roots = [f32::NAN; 3];
+        solve_cubic_schwarze(k, &mut roots);
+        roots
+            .into_iter()
+            .filter(|r| (0.0..=1.0).contains(r))
+            .min_by(f32::total_cmp)
+            .map(f64::from)
+    }
+}
+
+fn solve_quadratic(a: f32, b: f32, c: f32, out: &mut [f32; 3]) {
+    if a == 0.0 {
+        if b != 0.0 {
+            out[0] = -c / b;
+        }
+        return;
+    }
+    let p = b / (2.0 * a);
+    let q = c / a;
+    let disc = p * p - q;
+    if disc == 0.0 {
+        out[0] = -p;
+    } else if disc > 0.0 {
+        let r = disc.sqrt();
+        out[0] = r - p;
+        out[1] = -r - p;
+    }
+}
+
+fn solve_cubic_schwarze(k: [f32; 4], out: &mut [f32; 3]) {
+    let scale = k[1].abs().max(k[2].abs()).max(k[3].abs());
+    if k[0].abs() <= 1e-6 * scale {
+        solve_quadratic(k[1], k[2], k[3], out);
+        return;
+    }
+    // Normal form x³ + A x² + B x + C.
+    let a = k[1] / k[0];
+    let b = k[2] / k[0];
+    let c = k[3] / k[0];
+    // Substitute x = y − A/3 to eliminate the quadratic term: y³ + 3p y + 2q = 0.
+    let sq_a = a * a;
+    let p = (1.0 / 3.0) * (-(1.0 / 3.0) * sq_a + b);
+    let q = 0.5 * ((2.0 / 27.0) * a * sq_a - (1.0 / 3.0) * a * b + c);
+    let cb_p = p * p * p;
+    let disc = q * q + cb_p;
+    let sub = (1.0 / 3.0) * a;
+    if disc.abs() <= 1e-7 * (q * q).max(cb_p.abs()) {
+        if q == 0.0 {
+            out[0] = -sub;
+        } else {
+            let u = (-q).cbrt();
+            out[0] = 2.0 * u - sub;
+            out[1] = -u - sub;
+        }
+    } else if disc < 0.0 {
+        let phi = (1.0 / 3.0) * (-q / (-cb_p).sqrt()).clamp(-1.0, 1.0).acos();
+        let t = 2.0 * (-p).sqrt();
+        out[0] = t * phi.cos() - sub;
+        out[1] = -t * (phi + std::f32::consts::FRAC_PI_3).cos() - sub;
+        out[2] = -t * (phi - std::f32::consts::FRAC_PI_3).cos() - sub;
+    } else {
+        let sqrt_d = disc.sqrt();
+        let u = (sqrt_d - q).cbrt();
+        let v = -(sqrt_d + q).cbrt();
+        out[0] = u + v - sub;
+    }
+}
+
+/// The `f64` reference: isolates every root of the cubic on `[0, 1]` and returns the first,
+/// to full double precision. The derivative's roots (refined by Newton steps) split the
+/// segment into monotone pieces; a piece whose ends differ in sign is bisected until its
+/// ends are adjacent doubles; an extremum with `|f|` below a rigorous rounding bound
+/// (`64·ε₆₄·Σ|g_i|·Π(weights)`) is a touching double or triple root and counts as a hit.
+/// Corner differences `v − iso` are formed in `f64` from the native voxels (exact for every
+/// integer type and for `f32`), and the segment in cell-local coordinates is formed in `f64`
+/// from the same `f32` ray and cell bounds the other methods see.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Reference;
+
+impl CellIntersector for Reference {
+    fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+        let iso = f64::from(iso);
+        let mut g = corners.map(|v| v.to_f64() - iso);
+        let gmax = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        if gmax == 0.0 {
+            return Some(0.0);
+        }
+        if !(1e-200..=1e200).contains(&gmax) {
+            g = g.map(|x| x / gmax);
+        }
+        let (p0, dp) = seg.local_f64();
+        let k = cubic_f64(&g, p0, dp);
+        // Bound on Σ|terms| of f over the segment: each weight's magnitude is at most
+        // max(|x|, |1 − x|) at the segment ends, per axis.
+        let mut wmax = 1.0f64;
+        for a in 0..3 {
+            let (x0, x1) = (p0[a], p0[a] + dp[a]);
+            wmax *= x0.abs().max(x1.abs()) + (1.0 - x0).abs().max((1.0 - x1).abs());
+        }
+        let gsum: f64 = g.iter().map(|x| x.abs()).sum();
+        let tol = 64.0 * f64::EPSILON * gsum * wmax;
+        reference_first_root(&k, tol)
+    }
+}
+
+/// First root of the cubic `k` on `[0, 1]` (see [`Reference`]).
+pub(crate) fn reference_first_root(k: &[f64; 4], tol: f64) -> Option<f64> {
+    let f0 = k[3];
+    if f0 == 0.0 {
+        return Some(0.0);
+    }
+    let mut ext = [0.0f64; 2];
+    let mut n = 0;
+    let (qa, qb, qc) = (3.0 * k[0], 2.0 * k[1], k[2]);
+    let mut cand = [f64::NAN; 2];
+    if qa == 0.0 {
+        if qb != 0.0 {
+            cand[0] = -qc / qb;
+        }
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        // A slightly negative discriminant from rounding is a (near) double extremum.
+        let disc = if disc < 0.0 && disc > -1e-12 * (qb * qb).max((4.0 * qa * qc).abs()) {
+            0.0
+        } else {
+            disc
+        };
+        if disc >= 0.0 {
+            let r = disc.sqrt();
+            let q = -0.5 * (qb + r.copysign(qb));
+            if q == 0.0 {
+                cand[0] = 0.0;
+            } else {
+                cand = [q / qa, qc / q];
+            }
+        }
+    }
+    for mut e in cand {
+        if !e.is_finite() {
+            continue;
+        }
+        // Newton on f' polishes the extremum (f'' = 6a·s + 2b).
+        for _ in 0..2 {
+            let d1 = (qa * e + qb) * e + qc;
+            let d2 = 2.0 * qa * e + qb;
+            if d2 != 0.0 {
+                let next = e - d1 / d2;
+                if next.is_finite() {
+                    e = next;
+                }
+            }
+        }
+        if e > 0.0 && e < 1.0 && !ext[..n].contains(&e) {
+            ext[n] = e;
+            n += 1;
+        }
+    }
+    if n == 2 && ext[0] > ext[1] {
+        ext.swap(0, 1);
+    }
+    let (mut s_prev, mut f_prev) = (0.0f64, f0);
+    for idx in 0..=n {
+        let (s, is_extremum) = if idx < n {
+            (ext[idx], true)
+        } else {
+            (1.0, false)
+        };
+        let fs = eval64(k, s);
+        if fs == 0.0 {
+            // A touching root at an extremum, or a root exactly at an end: but a sign
+            // change strictly inside the piece comes first only if f_prev and fs differ,
+            // which a zero cannot.
+            return Some(s);
+        }
+        if (fs > 0.0) != (f_prev > 0.0) {
+            return Some(bisect(k, s_prev, f_prev, s));
+        }
+        if is_extremum && fs.abs() <= tol {
+            return Some(s);
+        }
+        s_prev = s;
+        f_prev = fs;
+    }
+    None
+}
+
+/// Bisection to adjacent doubles on a sign change.
+fn bisect(k: &[f64; 4], mut lo: f64, f_lo: f64, mut hi: f64) -> f64 {
+    let lo_pos = f_lo > 0.0;
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        let fm = eval64(k, mid);
+        if fm == 0.0 {
+            return mid;
+        }
+        if (fm > 0.0) == lo_pos {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// f(s) evaluated straight from the trilinear definition.
+    fn trilinear(g: &[f64; 8], p: [f64; 3]) -> f64 {
+        let mut f = 0.0;
+        for (c, gc) in g.iter().enumerate() {
+            let w = |a: usize, bit: usize| if c >> bit & 1 == 1 { p[a] } else { 1.0 - p[a] };
+            f += gc * w(0, 0) * w(1, 1) * w(2, 2);
+        }
+        f
+    }
+
+    #[test]
+    fn cubic_matches_trilinear_interpolation() {
+        let g = [0.3, -1.2, 2.0, 0.7, -0.4, 1.1, -2.5, 0.9];
+        let p0 = [0.1, 0.8, 0.3];
+        let dp = [0.7, -0.5, 0.6];
+        let k = cubic_f64(&g, p0, dp);
+        let kf = cubic_f32(
+            &g.map(|x| x as f32),
+            p0.map(|x| x as f32),
+            dp.map(|x| x as f32),
+        );
+        for i in 0..=10 {
+            let s = f64::from(i) / 10.0;
+            let p = [0, 1, 2].map(|a| p0[a] + s * dp[a]);
+            let truth = trilinear(&g, p);
+            assert!((eval64(&k, s) - truth).abs() < 1e-12);
+            assert!((f64::from(eval(&kf, s as f32)) - truth).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn reference_finds_simple_double_and_triple_roots() {
+        // (s − 0.25)(s − 0.5)(s − 0.75) = s³ − 1.5 s² + 0.6875 s − 0.09375
+        let k = [1.0, -1.5, 0.6875, -0.09375];
+        assert!((reference_first_root(&k, 1e-15).unwrap() - 0.25).abs() < 1e-15);
+        // Touching double root at 0.5: (s − 0.5)² = s² − s + 0.25.
+        let k = [0.0, 1.0, -1.0, 0.25];
+        assert_eq!(reference_first_root(&k, 1e-15), Some(0.5));
+        // Just missing the tangent.
+        let k = [0.0, 1.0, -1.0, 0.25 + 1e-9];
+        assert_eq!(reference_first_root(&k, 1e-15), None);
+        // Triple root at 0.5: (s − 0.5)³.
+        let k = [1.0, -1.5, 0.75, -0.125];
+        assert!((reference_first_root(&k, 1e-15).unwrap() - 0.5).abs() < 1e-5);
+        // Root at the exit end.
+        let k = [0.0, 0.0, 1.0, -1.0];
+        assert_eq!(reference_first_root(&k, 1e-15), Some(1.0));
+    }
+
+    #[test]
+    fn schwarze_solves_three_real_roots() {
+        let mut r = [f32::NAN; 3];
+        solve_cubic_schwarze([1.0, -1.5, 0.6875, -0.09375], &mut r);
+        let mut r: Vec<f32> = r.into_iter().filter(|x| !x.is_nan()).collect();
+        r.sort_by(f32::total_cmp);
+        assert_eq!(r.len(), 3);
+        for (x, t) in r.iter().zip([0.25, 0.5, 0.75]) {
+            assert!((x - t).abs() < 1e-5, "{r:?}");
+        }
+    }
+
+    #[test]
+    fn corner_diffs_rescale_extreme_ranges() {
+        let big = [3e38f32, -3e38, 1e30, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let (g, m) = corner_diffs(&big, 0.0);
+        assert!(g.iter().all(|x| x.is_finite()) && m <= 1.0 + 1e-6 && m > 0.5);
+        let tiny = [1e-40f32, -2e-40, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let (g, m) = corner_diffs(&tiny, 0.0);
+        assert!(m > 0.5 && g[1] < 0.0 && g[0] > 0.0);
+        let (_, m) = corner_diffs(&[7u8; 8], 7.0);
+        assert_eq!(m, 0.0);
+    }
+}

@@ -1,0 +1,450 @@
+//! Ray–isosurface intersection inside trilinear cells (thesis seed 004 §6.1.1, §6.5.2,
+//! §7.2.2), shared by the kd-tree ([`crate::kdtree`]) and its brute-force twin
+//! ([`crate::dda`]).
+//!
+//! - [`frame`]: world rays into traversal (cell) units; cell boxes; world normals.
+//! - [`methods`]: the cubic along a cell segment and the five intersectors.
+//! - [`accuracy`]: the extreme suite and the harness that scores an intersector against
+//!   the `f64` reference (missed hits, false hits, |Δt| in cell units).
+//!
+//! The intersector is chosen at run time with [`Intersector`] (parsed from
+//! "linear", "neubauer", "exact", "schwarze", "reference") and turned into a type once per
+//! frame: the traversal is generic over [`CellIntersector`], so no cell pays for dispatch.
+//!
+//! Error behaviour (details on each type in [`methods`]):
+//! - [`methods::Linear`]: one linear interpolation between entry and exit; misses cells
+//!   the ray enters and leaves again, misses tangent touches; position error grows with
+//!   surface curvature.
+//! - [`methods::Neubauer`]: linear + N regula-falsi steps; same misses, smaller error.
+//! - [`methods::Exact`] (Listing 7.1, the default): extrema split the segment into monotone
+//!   pieces, so no root is missed; f32 regula falsi gives the position.
+//! - [`methods::Schwarze`]: analytic Cardano in f32; exact in exact arithmetic but loses
+//!   digits for nearly quadratic segments and clustered roots.
+//! - [`methods::Reference`]: f64 root isolation to full double precision (the truth).
+//!
+//! Cell policy shared by all: a cell with a non-finite corner (NaN = void, or ±inf, whose
+//! trilinear interpolant is infinite or NaN almost everywhere in the cell) contains no
+//! surface; a cell equal to the isovalue everywhere is hit at its entry; a corner equal to
+//! the isovalue is a candidate (ranges are closed).
+
+//ACC pub mod accuracy;
+pub mod frame;
+pub mod methods;
+
+use std::str::FromStr;
+
+use glam::Vec3;
+
+use crate::voxel::{Voxel, VoxelType};
+
+pub use frame::{LocalRay, TraversalFrame};
+
+/// The run-time choice of cell intersector.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Intersector {
+    Linear,
+    Neubauer {
+        iterations: u32,
+    },
+    /// Listing 7.1 (the default).
+    #[default]
+    Exact,
+    Schwarze,
+    /// The f64 reference (slow; the accuracy truth).
+    Reference,
+}
+
+impl Intersector {
+    pub const ALL: [Intersector; 5] = [
+        Intersector::Linear,
+        Intersector::Neubauer { iterations: 3 },
+        Intersector::Exact,
+        Intersector::Schwarze,
+        Intersector::Reference,
+    ];
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Intersector::Linear => "linear",
+            Intersector::Neubauer { .. } => "neubauer",
+            Intersector::Exact => "exact",
+            Intersector::Schwarze => "schwarze",
+            Intersector::Reference => "reference",
+        }
+    }
+}
+
+impl std::fmt::Display for Intersector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Intersector::Neubauer { iterations } if *iterations != 3 => {
+                write!(f, "neubauer:{iterations}")
+            }
+            _ => f.write_str(self.name()),
+        }
+    }
+}
+
+/// An unknown intersector name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown intersector {0:?} (expected linear, neubauer[:N], exact, schwarze or reference)")]
+pub struct ParseIntersectorError(pub String);
+
+impl FromStr for Intersector {
+    type Err = ParseIntersectorError;
+
+    /// "linear", "neubauer" (3 iterations) or "neubauer:N", "exact", "schwarze", "reference".
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let lower = s.trim().to_ascii_lowercase();
+        match lower.as_str() {
+            "linear" => Ok(Intersector::Linear),
+            "neubauer" => Ok(Intersector::Neubauer { iterations: 3 }),
+            "exact" => Ok(Intersector::Exact),
+            "schwarze" => Ok(Intersector::Schwarze),
+            "reference" => Ok(Intersector::Reference),
+            other => other
+                .strip_prefix("neubauer:")
+                .and_then(|n| n.parse::<u32>().ok())
+                .filter(|n| *n <= 64)
+                .map(|iterations| Intersector::Neubauer { iterations })
+                .ok_or_else(|| ParseIntersectorError(s.to_string())),
+        }
+    }
+}
+
+/// Runs `$body` with `$c` bound to the [`CellIntersector`] value for an [`Intersector`]:
+/// one `match`, then monomorphized code.
+#[macro_export]
+macro_rules! dispatch_intersector {
+    ($which:expr, $c:ident => $body:expr) => {
+        match $which {
+            $crate::intersect::Intersector::Linear => {
+                let $c = $crate::intersect::methods::Linear;
+                $body
+            }
+            $crate::intersect::Intersector::Neubauer { iterations } => {
+                let $c = $crate::intersect::methods::Neubauer { iterations };
+                $body
+            }
+            $crate::intersect::Intersector::Exact => {
+                let $c = $crate::intersect::methods::Exact;
+                $body
+            }
+            $crate::intersect::Intersector::Schwarze => {
+                let $c = $crate::intersect::methods::Schwarze;
+                $body
+            }
+            $crate::intersect::Intersector::Reference => {
+                let $c = $crate::intersect::methods::Reference;
+                $body
+            }
+        }
+    };
+}
+
+/// A ray segment inside one cell, in traversal units.
+#[derive(Debug, Clone, Copy)]
+pub struct CellSegment {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// Cell bounds.
+    pub lo: Vec3,
+    pub hi: Vec3,
+    pub t_near: f32,
+    pub t_far: f32,
+}
+
+impl CellSegment {
+    /// Cell-local entry point and displacement over the segment (`s ∈ [0, 1]`).
+    #[inline(always)]
+    pub fn local_f32(&self) -> ([f32; 3], [f32; 3]) {
+        let inv_w = (self.hi - self.lo).recip();
+        let p0 = ((self.origin - self.lo) + self.dir * self.t_near) * inv_w;
+        let dp = self.dir * ((self.t_far - self.t_near) * inv_w);
+        (p0.to_array(), dp.to_array())
+    }
+
+    /// `f64` twin of [`CellSegment::local_f32`] from the same `f32` inputs.
+    pub fn local_f64(&self) -> ([f64; 3], [f64; 3]) {
+        let (o, d, lo, hi) = (
+            self.origin.as_dvec3(),
+            self.dir.as_dvec3(),
+            self.lo.as_dvec3(),
+            self.hi.as_dvec3(),
+        );
+        let (tn, tf) = (f64::from(self.t_near), f64::from(self.t_far));
+        let w = hi - lo;
+        let p0 = ((o - lo) + d * tn) / w;
+        let dp = d * (tf - tn) / w;
+        (p0.to_array(), dp.to_array())
+    }
+
+    /// The ray parameter of segment position `s`.
+    #[inline(always)]
+    pub fn t_at(&self, s: f64) -> f32 {
+        let (tn, tf) = (f64::from(self.t_near), f64::from(self.t_far));
+        (tn + s * (tf - tn)) as f32
+    }
+}
+
+/// A cell intersector (one of [`methods`]): the first root `s ∈ [0, 1]` of
+/// `f(s) = trilinear(corners)(segment(s)) − iso`.
+pub trait CellIntersector: Copy + Send + Sync + 'static {
+    fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64>;
+}
+
+/// The most isovalues one traversal handles without allocating (more are still correct, the
+/// set then lives on the heap).
+pub const INLINE_ISOVALUES: usize = 16;
+
+/// Active isovalues converted once per ray into the voxel type's comparable range.
+///
+/// Iso `c` lies in a node range `[min, max]` iff `min <= lo && max >= hi`, with
+/// `lo = floor(c)`, `hi = ceil(c)` for integer types (exact: integer ranges contain the
+/// real `c` iff they contain both) and `lo = hi = c` for floats. Isovalues outside the
+/// type's range or NaN can never be hit and are dropped.
+#[derive(Debug, Clone)]
+pub struct IsoSet<T: Voxel> {
+    len: usize,
+    lo: [T; INLINE_ISOVALUES],
+    hi: [T; INLINE_ISOVALUES],
+    value: [f32; INLINE_ISOVALUES],
+    surface: [u32; INLINE_ISOVALUES],
+    spill: Vec<(T, T, f32, u32)>,
+}
+
+impl<T: Voxel> IsoSet<T> {
+    pub fn new(isovalues: &[f32]) -> Self {
+        let mut s = Self {
+            len: 0,
+            lo: [T::default(); INLINE_ISOVALUES],
+            hi: [T::default(); INLINE_ISOVALUES],
+            value: [0.0; INLINE_ISOVALUES],
+            surface: [0; INLINE_ISOVALUES],
+            spill: Vec::new(),
+        };
+        for (i, &c) in isovalues.iter().enumerate() {
+            let Some((lo, hi)) = native_bounds::<T>(c) else {
+                continue;
+            };
+            if s.len < INLINE_ISOVALUES {
+                s.lo[s.len] = lo;
+                s.hi[s.len] = hi;
+                s.value[s.len] = c;
+                s.surface[s.len] = i as u32;
+                s.len += 1;
+            } else {
+                s.spill.push((lo, hi, c, i as u32));
+            }
+        }
+        s
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// True if some isovalue lies in `[min, max]` (an empty range `min > max` never does).
+    #[inline(always)]
+    pub fn any_in(&self, min: T, max: T) -> bool {
+        for i in 0..self.len {
+            if min <= self.lo[i] && max >= self.hi[i] {
+                return true;
+            }
+        }
+        self.spill
+            .iter()
+            .any(|&(lo, hi, _, _)| min <= lo && max >= hi)
+    }
+
+    /// Calls `f(iso, surface)` for each isovalue inside `[min, max]`.
+    #[inline(always)]
+    pub fn for_each_in(&self, min: T, max: T, mut f: impl FnMut(f32, u32)) {
+        for i in 0..self.len {
+            if min <= self.lo[i] && max >= self.hi[i] {
+                f(self.value[i], self.surface[i]);
+            }
+        }
+        for &(lo, hi, c, s) in &self.spill {
+            if min <= lo && max >= hi {
+                f(c, s);
+            }
+        }
+    }
+}
+
+/// `(floor(c), ceil(c))` in `T` for integer types, `(c, c)` for floats; `None` when no
+/// voxel value range of `T` can contain `c`.
+pub fn native_bounds<T: Voxel>(c: f32) -> Option<(T, T)> {
+    if c.is_nan() {
+        return None;
+    }
+    let c = f64::from(c);
+    if T::TYPE.is_float() {
+        if T::TYPE == VoxelType::F32 && !(c >= f64::from(f32::MIN) && c <= f64::from(f32::MAX)) {
+            return None;
+        }
+        return Some((T::from_f64(c), T::from_f64(c)));
+    }
+    let (lo, hi) = (c.floor(), c.ceil());
+    if lo < T::LOWEST.to_f64() || hi > T::HIGHEST.to_f64() {
+        return None;
+    }
+    // Integral values convert exactly (from_f64 rounds, which is the identity here).
+    Some((T::from_f64(lo), T::from_f64(hi)))
+}
+
+/// The value range of a cell's corners, or `None` for a void cell (a non-finite corner).
+#[inline(always)]
+pub fn corner_range<T: Voxel>(c: &[T; 8]) -> Option<(T, T)> {
+    if T::TYPE.is_float() && c.iter().any(|v| !v.to_f64().is_finite()) {
+        return None;
+    }
+    let mut lo = c[0];
+    let mut hi = c[0];
+    for &v in &c[1..] {
+        if v < lo {
+            lo = v;
+        }
+        if v > hi {
+            hi = v;
+        }
+    }
+    Some((lo, hi))
+}
+
+/// The eight corner voxels of cell `(i, j, k)` (corner index `x + 2y + 4z`).
+#[inline(always)]
+pub fn cell_corners<T: Voxel>(voxels: &[T], dims: [usize; 3], c: [usize; 3]) -> [T; 8] {
+    let nx = dims[0];
+    let nxy = dims[0] * dims[1];
+    let base = c[0] + nx * c[1] + nxy * c[2];
+    [
+        voxels[base],
+        voxels[base + 1],
+        voxels[base + nx],
+        voxels[base + nx + 1],
+        voxels[base + nxy],
+        voxels[base + nxy + 1],
+        voxels[base + nxy + nx],
+        voxels[base + nxy + nx + 1],
+    ]
+}
+
+/// A hit inside one cell: ray parameter (traversal units = world `t`), surface index and
+/// the cell.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellHit {
+    pub t: f32,
+    pub surface: u32,
+    pub cell: [usize; 3],
+}
+
+/// Intersects the ray with the active isosurfaces inside cell `cell`, within `[t_lo, t_hi]`.
+///
+/// The segment is the cell's own slab overlap (not the traversal's interval), so every
+/// traversal that visits the cell gets bit-identical results. Returns the nearest hit.
+#[inline(always)]
+pub fn intersect_cell<T: Voxel, C: CellIntersector, S: crate::render::Stats>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    ray: &LocalRay,
+    cell: [usize; 3],
+    t_lo: f32,
+    t_hi: f32,
+    isos: &IsoSet<T>,
+    intersector: C,
+    stats: &mut S,
+) -> Option<CellHit> {
+    stats.leaf();
+    let corners = cell_corners(voxels, dims, cell);
+    let (min, max) = corner_range(&corners)?;
+    if !isos.any_in(min, max) {
+        return None;
+    }
+    let (lo, hi) = frame.cell_box(cell);
+    let (t_near, t_far) = frame::slab(ray, lo, hi, t_lo, t_hi)?;
+    if !(hi.cmpgt(lo).all()) {
+        return None; // zero-width cell (explicit coordinates closer than f32 resolution)
+    }
+    let seg = CellSegment {
+        origin: ray.origin,
+        dir: ray.dir,
+        lo,
+        hi,
+        t_near,
+        t_far,
+    };
+    let mut best: Option<CellHit> = None;
+    isos.for_each_in(min, max, |iso, surface| {
+        stats.intersection();
+        if let Some(s) = intersector.first_root(&corners, iso, &seg) {
+            let t = seg.t_at(s).clamp(t_near, t_far);
+            if best.is_none_or(|b| t < b.t) {
+                best = Some(CellHit { t, surface, cell });
+            }
+        }
+    });
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn intersector_names_round_trip() {
+        for i in Intersector::ALL {
+            assert_eq!(i.to_string().parse::<Intersector>(), Ok(i));
+        }
+        assert_eq!(
+            "neubauer:5".parse(),
+            Ok(Intersector::Neubauer { iterations: 5 })
+        );
+        assert_eq!("EXACT".parse(), Ok(Intersector::Exact));
+        assert!("cubic".parse::<Intersector>().is_err());
+        assert_eq!(Intersector::default(), Intersector::Exact);
+    }
+
+    #[test]
+    fn integer_iso_bounds_are_exact() {
+        assert_eq!(native_bounds::<u8>(100.5), Some((100, 101)));
+        assert_eq!(native_bounds::<u8>(100.0), Some((100, 100)));
+        assert_eq!(native_bounds::<u8>(255.5), None);
+        assert_eq!(native_bounds::<u8>(-0.5), None);
+        assert_eq!(native_bounds::<i16>(-3.25), Some((-4, -3)));
+        assert_eq!(native_bounds::<f32>(f32::NAN), None);
+        let s = IsoSet::<u8>::new(&[100.5, 300.0, 7.0]);
+        // 100.5 is inside [100, 101] but not [100, 100] or [101, 200].
+        assert!(s.any_in(100, 101));
+        assert!(!s.any_in(101, 200) || s.any_in(7, 7));
+        assert!(!IsoSet::<u8>::new(&[100.5]).any_in(100, 100));
+        assert!(!IsoSet::<u8>::new(&[100.5]).any_in(101, 200));
+        let mut hits = vec![];
+        s.for_each_in(0, 255, |c, i| hits.push((c, i)));
+        assert_eq!(hits, vec![(100.5, 0), (7.0, 2)]);
+        // An empty range (min > max) never matches.
+        assert!(!IsoSet::<f32>::new(&[0.0]).any_in(f32::MAX, f32::MIN));
+    }
+
+    #[test]
+    fn more_isovalues_than_inline_capacity_still_work() {
+        let isos: Vec<f32> = (0..40).map(|i| i as f32).collect();
+        let s = IsoSet::<u8>::new(&isos);
+        let mut n = 0;
+        s.for_each_in(30, 35, |_, _| n += 1);
+        assert_eq!(n, 6);
+    }
+
+    #[test]
+    fn void_and_infinite_cells_have_no_range() {
+        let mut c = [1.0f32; 8];
+        assert_eq!(corner_range(&c), Some((1.0, 1.0)));
+        c[3] = f32::NAN;
+        assert_eq!(corner_range(&c), None);
+        c[3] = f32::INFINITY;
+        assert_eq!(corner_range(&c), None);
+    }
+}

@@ -1,0 +1,542 @@
+//! The implicit min/max kd-tree over the cells of a rectilinear volume (thesis seed 004
+//! §7.1–7.3, §7.6), in the *slim* layout:
+//!
+//! - **No pointers** (§7.3.1): each axis is virtually padded to a power of two
+//!   (§7.3.3), so the tree is balanced and every level splits one dimension (the one whose
+//!   node extent is largest; x before y before z on ties). A node is addressed by
+//!   `(i, j, k, level)`; its children along the level's axis `a` are `2·idx[a]` and
+//!   `2·idx[a] + 1`. Min/max live in one flat array per level holding only the *real*
+//!   nodes (`ceil(cells / extent)` per axis); virtual nodes lie beyond the volume bounds,
+//!   which every ray is clipped to, and their split positions are `+inf`, so they are never
+//!   stored nor visited.
+//! - **Per-level split tables**: the split of node `idx[a]` at a level is the sample
+//!   coordinate of cell boundary `idx[a]·extent + extent/2` (traversal units, see
+//!   [`crate::intersect::frame`]). A spacing edit only rebuilds these tables (§7.6).
+//! - **Native type**: min/max are stored as `[T; 2]` (u8 data gives a u8 tree).
+//! - **No leaves** (§7.3.2): a leaf's range is computed from the cell's 8 corners. Going
+//!   further than the thesis, the lowest [`KdTreeConfig::unstored_levels`] inner levels are
+//!   not stored either: traversal descends through them without culling (every cell still
+//!   gets its exact corner test). Each skipped level halves the memory (thesis: 2× the data
+//!   for the full tree; 3 skipped levels: 0.25×); the cost in traversal steps is measured in
+//!   docs/benchmarks.md.
+//! - **Void**: a cell with a non-finite corner has an empty range; a node of only void
+//!   cells has the empty range `[HIGHEST, LOWEST]`, which no isovalue satisfies.
+//! - **Build** (§7.1.2) is O(N) and parallel (rayon): the lowest stored level from the
+//!   voxels, every level above from its two children. [`KdTree::refit_region`] redoes only
+//!   the nodes over an edited voxel box (§7.6).
+//!
+//! Traversal ([`KdTree::first_hit`]) is single-ray front to back with isovalue culling
+//! (§7.2.1), robust for rays lying in a split plane (seed 000 §5, Havran: both children are
+//! visited, since the surface on a shared face may belong to either cell), with any number
+//! of isovalues in one pass.
+
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+
+use crate::intersect::{
+    CellHit, CellIntersector, IsoSet, LocalRay, TraversalFrame, cell_corners, corner_range,
+    intersect_cell,
+};
+use crate::render::Stats;
+use crate::voxel::Voxel;
+
+/// Build options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct KdTreeConfig {
+    /// Inner levels directly above the leaves whose min/max are not stored (0 = thesis
+    /// layout with all inner nodes).
+    pub unstored_levels: usize,
+}
+
+impl Default for KdTreeConfig {
+    fn default() -> Self {
+        Self { unstored_levels: 2 }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Level {
+    /// Split dimension of this level's nodes (unused at the leaf level).
+    axis: usize,
+    /// Cells per node side, virtual padding included (a power of two).
+    extent: [usize; 3],
+    /// Real nodes per axis: `ceil(cells / extent)`.
+    count: [usize; 3],
+    range_offset: usize,
+    split_offset: usize,
+}
+
+/// The implicit min/max kd-tree (see the module docs).
+#[derive(Debug, Clone)]
+pub struct KdTree<T: Voxel> {
+    dims: [usize; 3],
+    cells: [usize; 3],
+    /// Number of inner levels; leaves (cells) are level `depth`.
+    depth: usize,
+    /// Levels `0..stored` carry min/max.
+    stored: usize,
+    /// `depth + 1` entries (the last describes the leaves).
+    levels: Vec<Level>,
+    ranges: Vec<[T; 2]>,
+    splits: Vec<f32>,
+    build_time: Duration,
+}
+
+/// One pending far child on the traversal stack.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Entry {
+    pub node: [u32; 3],
+    pub level: u32,
+    pub t_near: f32,
+    pub t_far: f32,
+}
+
+/// Stack entries kept inline (trees deeper than this fall back to a heap stack).
+pub(crate) const INLINE_STACK: usize = 64;
+
+impl<T: Voxel> KdTree<T> {
+    /// Builds the tree over `voxels` (x fastest, `dims` samples) with split positions from
+    /// `frame`.
+    pub fn build(
+        voxels: &[T],
+        dims: [usize; 3],
+        frame: &TraversalFrame,
+        config: KdTreeConfig,
+    ) -> Self {
+        let start = Instant::now();
+        assert_eq!(voxels.len(), dims[0] * dims[1] * dims[2], "voxel count");
+        let cells = dims.map(|d| d.saturating_sub(1));
+        let mut levels = Vec::new();
+        if !cells.contains(&0) {
+            let mut extent = cells.map(usize::next_power_of_two);
+            let (mut range_offset, mut split_offset) = (0, 0);
+            loop {
+                let count = [0, 1, 2].map(|a| cells[a].div_ceil(extent[a]));
+                let mut axis = 0;
+                for a in 1..3 {
+                    if extent[a] > extent[axis] {
+                        axis = a;
+                    }
+                }
+                levels.push(Level {
+                    axis,
+                    extent,
+                    count,
+                    range_offset,
+                    split_offset,
+                });
+                if extent == [1, 1, 1] {
+                    break;
+                }
+                range_offset += count[0] * count[1] * count[2];
+                split_offset += count[axis];
+                extent[axis] /= 2;
+            }
+        }
+        let depth = levels.len().saturating_sub(1);
+        let stored = depth.saturating_sub(config.unstored_levels);
+        let n_ranges = levels.get(stored).map_or(0, |l| l.range_offset);
+        let mut tree = Self {
+            dims,
+            cells,
+            depth,
+            stored,
+            levels,
+            ranges: vec![[T::HIGHEST, T::LOWEST]; n_ranges],
+            splits: Vec::new(),
+            build_time: Duration::ZERO,
+        };
+        tree.set_coordinates(frame);
+        if stored > 0 {
+            let all = [[0, 0, 0], tree.levels[stored - 1].count.map(|c| c - 1)];
+            tree.refit_nodes(voxels, all);
+        }
+        tree.build_time = start.elapsed();
+        tree
+    }
+
+    /// Recomputes the split tables from new sample coordinates (same dims; thesis §7.6).
+    pub fn set_coordinates(&mut self, frame: &TraversalFrame) {
+        assert_eq!(frame.cells(), self.cells, "coordinates for other dims");
+        self.splits.clear();
+        for l in 0..self.depth {
+            let lv = self.levels[l];
+            let a = lv.axis;
+            debug_assert_eq!(lv.split_offset, self.splits.len());
+            for i in 0..lv.count[a] {
+                let m = i * lv.extent[a] + lv.extent[a] / 2;
+                self.splits.push(if m < self.cells[a] {
+                    frame.pos[a][m]
+                } else {
+                    f32::INFINITY
+                });
+            }
+        }
+    }
+
+    /// Refits min/max after the voxels in the inclusive box `[lo, hi]` changed (thesis §7.6):
+    /// only nodes over the affected cells are recomputed.
+    pub fn refit_region(&mut self, voxels: &[T], lo: [usize; 3], hi: [usize; 3]) {
+        assert_eq!(
+            voxels.len(),
+            self.dims.iter().product::<usize>(),
+            "voxel count"
+        );
+        if self.stored == 0 {
+            return;
+        }
+        let bottom = self.levels[self.stored - 1];
+        let mut box_lo = [0; 3];
+        let mut box_hi = [0; 3];
+        for a in 0..3 {
+            // Cells touching the voxels lo..=hi are lo−1 ..= hi.
+            let c_lo = lo[a].saturating_sub(1);
+            let c_hi = hi[a].min(self.cells[a] - 1);
+            if c_lo > c_hi {
+                return;
+            }
+            box_lo[a] = c_lo / bottom.extent[a];
+            box_hi[a] = c_hi / bottom.extent[a];
+        }
+        self.refit_nodes(voxels, [box_lo, box_hi]);
+    }
+
+    /// Recomputes the lowest stored level over the node box `b` (inclusive), then every
+    /// level above.
+    fn refit_nodes(&mut self, voxels: &[T], b: [[usize; 3]; 2]) {
+        let sb = self.stored - 1;
+        let lv = self.levels[sb];
+        let (dims, cells) = (self.dims, self.cells);
+        let (start, end) = (
+            lv.range_offset,
+            lv.range_offset + lv.count.iter().product::<usize>(),
+        );
+        let level = &mut self.ranges[start..end];
+        let [lo, hi] = b;
+        // One row (fixed j, k) per task.
+        level
+            .par_chunks_mut(lv.count[0])
+            .enumerate()
+            .for_each(|(row, out)| {
+                let j = row % lv.count[1];
+                let k = row / lv.count[1];
+                if j < lo[1] || j > hi[1] || k < lo[2] || k > hi[2] {
+                    return;
+                }
+                for i in lo[0]..=hi[0] {
+                    out[i] = node_range_from_cells(voxels, dims, cells, lv.extent, [i, j, k]);
+                }
+            });
+        let (mut lo, mut hi) = (lo, hi);
+        for l in (0..sb).rev() {
+            let parent = self.levels[l];
+            let child = self.levels[l + 1];
+            let a = parent.axis;
+            lo[a] /= 2;
+            hi[a] /= 2;
+            let (head, tail) = self.ranges.split_at_mut(child.range_offset);
+            let parents = &mut head[parent.range_offset..];
+            let children = &tail[..child.count.iter().product::<usize>()];
+            parents
+                .par_chunks_mut(parent.count[0])
+                .enumerate()
+                .for_each(|(row, out)| {
+                    let j = row % parent.count[1];
+                    let k = row / parent.count[1];
+                    if j < lo[1] || j > hi[1] || k < lo[2] || k > hi[2] {
+                        return;
+                    }
+                    for i in lo[0]..=hi[0] {
+                        let mut c = [i, j, k];
+                        c[a] *= 2;
+                        let mut r = children[child_addr(&child, c)];
+                        c[a] += 1;
+                        if c[a] < child.count[a] {
+                            r = union(r, children[child_addr(&child, c)]);
+                        }
+                        out[i] = r;
+                    }
+                });
+        }
+    }
+
+    /// Bytes of tree storage (min/max arrays, split tables, level descriptors).
+    pub fn memory_bytes(&self) -> usize {
+        self.ranges.len() * size_of::<[T; 2]>()
+            + self.splits.len() * size_of::<f32>()
+            + self.levels.len() * size_of::<Level>()
+            + size_of::<Self>()
+    }
+
+    /// Tree bytes per voxel byte.
+    pub fn memory_ratio(&self) -> f64 {
+        let data = (self.dims.iter().product::<usize>() * size_of::<T>()).max(1);
+        self.memory_bytes() as f64 / data as f64
+    }
+
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    /// Inner levels (the leaves are cells at this level).
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// Levels that store min/max.
+    pub fn stored_levels(&self) -> usize {
+        self.stored
+    }
+
+    /// Min/max of node `(i, j, k)` at a stored `level`, or `None` for an unstored level or
+    /// a node that does not exist (virtual or out of range).
+    pub fn node_range(&self, level: usize, node: [usize; 3]) -> Option<(T, T)> {
+        let exists = level < self.stored && (0..3).all(|a| node[a] < self.levels[level].count[a]);
+        exists.then(|| {
+            let r = self.ranges
+                [self.levels[level].range_offset + child_addr(&self.levels[level], node)];
+            (r[0], r[1])
+        })
+    }
+
+    /// First hit of `ray` (traversal units) within `[t0, t1]`, already clipped to the
+    /// volume bounds (see [`TraversalFrame::clip`]).
+    #[inline]
+    pub fn first_hit<C: CellIntersector, S: Stats>(
+        &self,
+        frame: &TraversalFrame,
+        voxels: &[T],
+        ray: &LocalRay,
+        t0: f32,
+        t1: f32,
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<CellHit> {
+        if self.levels.is_empty() || isos.is_empty() {
+            return None;
+        }
+        if self.depth < INLINE_STACK {
+            let mut stack = [Entry::default(); INLINE_STACK];
+            self.traverse(
+                frame,
+                voxels,
+                ray,
+                t0,
+                t1,
+                isos,
+                intersector,
+                stats,
+                &mut stack,
+            )
+        } else {
+            let mut stack = vec![Entry::default(); self.depth + 1];
+            self.traverse(
+                frame,
+                voxels,
+                ray,
+                t0,
+                t1,
+                isos,
+                intersector,
+                stats,
+                &mut stack,
+            )
+        }
+    }
+
+    #[inline(always)]
+    fn traverse<C: CellIntersector, S: Stats>(
+        &self,
+        frame: &TraversalFrame,
+        voxels: &[T],
+        ray: &LocalRay,
+        t0: f32,
+        t1: f32,
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+        stack: &mut [Entry],
+    ) -> Option<CellHit> {
+        let mut sp = 0usize;
+        let mut best: Option<CellHit> = None;
+        let mut node = [0u32; 3];
+        let mut level = 0usize;
+        let (mut ta, mut tb) = (t0, t1);
+        'outer: loop {
+            loop {
+                if level == self.depth {
+                    let cell = node.map(|x| x as usize);
+                    if let Some(h) = intersect_cell(
+                        frame,
+                        voxels,
+                        self.dims,
+                        ray,
+                        cell,
+                        t0,
+                        t1,
+                        isos,
+                        intersector,
+                        stats,
+                    ) && best.is_none_or(|b| h.t < b.t)
+                    {
+                        best = Some(h);
+                    }
+                    break;
+                }
+                let lv = &self.levels[level];
+                if level < self.stored {
+                    let r = self.ranges[lv.range_offset
+                        + node[0] as usize
+                        + lv.count[0] * (node[1] as usize + lv.count[1] * node[2] as usize)];
+                    if !isos.any_in(r[0], r[1]) {
+                        break;
+                    }
+                }
+                stats.node();
+                let a = lv.axis;
+                let split = self.splits[lv.split_offset + node[a] as usize];
+                let child_count = self.levels[level + 1].count[a] as u32;
+                let mut left = node;
+                left[a] *= 2;
+                let mut right = left;
+                right[a] += 1;
+                let right_real = right[a] < child_count;
+                level += 1;
+                let o = ray.origin[a];
+                let d = ray.dir[a];
+                if d == 0.0 {
+                    if o < split {
+                        node = left;
+                    } else if o > split {
+                        if !right_real {
+                            break;
+                        }
+                        node = right;
+                    } else {
+                        // In the split plane: both sides (seed 000 §5).
+                        if right_real {
+                            stack[sp] = Entry {
+                                node: right,
+                                level: level as u32,
+                                t_near: ta,
+                                t_far: tb,
+                            };
+                            sp += 1;
+                        }
+                        node = left;
+                    }
+                    continue;
+                }
+                let ts = (split - o) * ray.inv_dir[a];
+                let (near, far, near_real, far_real) = if d > 0.0 {
+                    (left, right, true, right_real)
+                } else {
+                    (right, left, right_real, true)
+                };
+                if ts > tb {
+                    if !near_real {
+                        break;
+                    }
+                    node = near;
+                } else if ts < ta {
+                    if !far_real {
+                        break;
+                    }
+                    node = far;
+                } else {
+                    if far_real {
+                        stack[sp] = Entry {
+                            node: far,
+                            level: level as u32,
+                            t_near: ts,
+                            t_far: tb,
+                        };
+                        sp += 1;
+                    }
+                    if !near_real {
+                        break;
+                    }
+                    node = near;
+                    tb = ts;
+                }
+            }
+            // Pop the next entry that can still hold a nearer hit. Entries pushed for a
+            // split-plane ray share their parent's interval, so the stack is not strictly
+            // ordered: skip rather than stop.
+            loop {
+                if sp == 0 {
+                    break 'outer;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                let limit = best.map_or(f32::INFINITY, |b| b.t);
+                if e.t_near <= limit {
+                    node = e.node;
+                    level = e.level as usize;
+                    ta = e.t_near;
+                    tb = e.t_far.min(limit);
+                    continue 'outer;
+                }
+            }
+        }
+        best
+    }
+}
+
+#[inline(always)]
+fn child_addr(l: &Level, c: [usize; 3]) -> usize {
+    c[0] + l.count[0] * (c[1] + l.count[1] * c[2])
+}
+
+#[inline(always)]
+fn union<T: Voxel>(a: [T; 2], b: [T; 2]) -> [T; 2] {
+    [
+        if b[0] < a[0] { b[0] } else { a[0] },
+        if b[1] > a[1] { b[1] } else { a[1] },
+    ]
+}
+
+/// Min/max over the real, non-void cells of node `n` with the given extent.
+fn node_range_from_cells<T: Voxel>(
+    voxels: &[T],
+    dims: [usize; 3],
+    cells: [usize; 3],
+    extent: [usize; 3],
+    n: [usize; 3],
+) -> [T; 2] {
+    let lo = [0, 1, 2].map(|a| n[a] * extent[a]);
+    let hi = [0, 1, 2].map(|a| ((n[a] + 1) * extent[a]).min(cells[a]));
+    let mut r = [T::HIGHEST, T::LOWEST];
+    if T::TYPE.is_float() {
+        // Void (non-finite) corners exclude their cells.
+        for k in lo[2]..hi[2] {
+            for j in lo[1]..hi[1] {
+                for i in lo[0]..hi[0] {
+                    if let Some((mn, mx)) = corner_range(&cell_corners(voxels, dims, [i, j, k])) {
+                        r = union(r, [mn, mx]);
+                    }
+                }
+            }
+        }
+    } else {
+        // No void integers: the range of the cells is the range of their corner voxels.
+        let nx = dims[0];
+        let nxy = dims[0] * dims[1];
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                let row = &voxels[nx * j + nxy * k + lo[0]..=nx * j + nxy * k + hi[0]];
+                for &v in row {
+                    if v < r[0] {
+                        r[0] = v;
+                    }
+                    if v > r[1] {
+                        r[1] = v;
+                    }
+                }
+            }
+        }
+    }
+    r
+}

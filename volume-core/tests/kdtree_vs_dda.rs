@@ -1,0 +1,467 @@
+//! The implicit kd-tree against its brute-force twins: the 3D-DDA cell walk (same hits),
+//! a naive recursive pointer tree (same node ranges), a full rebuild (refit), and an
+//! analytic sphere (hit positions).
+
+use glam::Vec3;
+use proptest::prelude::*;
+use volume_core::grid_scene::GridScene;
+use volume_core::intersect::{Intersector, IsoSet, corner_range, methods::Exact};
+use volume_core::kdtree::{KdTree, KdTreeConfig};
+use volume_core::math::Ray;
+use volume_core::render::{CountStats, IsoScene, NoStats, Stats};
+use volume_core::{AxisCoords, Grid, Voxel, VoxelBuffer};
+
+/// Small deterministic generator (tests must not depend on global state).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> u64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        self.0 >> 11
+    }
+    fn unit(&mut self) -> f32 {
+        (self.next() as f64 / (1u64 << 53) as f64) as f32
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.unit()
+    }
+}
+
+fn grid_for(dims: [usize; 3], rng: &mut Lcg, explicit: bool) -> Grid {
+    if explicit {
+        let axes = [0, 1, 2].map(|a| {
+            let mut x = 0.0f64;
+            let c: Vec<f64> = (0..dims[a])
+                .map(|_| {
+                    x += 0.5 + f64::from(rng.unit());
+                    x
+                })
+                .collect();
+            AxisCoords::Explicit(c.into())
+        });
+        Grid::new(dims, axes, None).unwrap()
+    } else {
+        Grid::uniform(
+            dims,
+            [-3.0, 1.5, 100.0],
+            [1.0, 0.75 + f64::from(rng.unit()), 1.25],
+        )
+        .unwrap()
+    }
+}
+
+fn random_ray(rng: &mut Lcg, lo: Vec3, hi: Vec3) -> Ray {
+    let c = (lo + hi) * 0.5;
+    let ext = (hi - lo).max(Vec3::splat(1.0));
+    let origin = c + Vec3::new(
+        rng.range(-1.2, 1.2),
+        rng.range(-1.2, 1.2),
+        rng.range(-1.2, 1.2),
+    ) * ext;
+    let target = c + Vec3::new(
+        rng.range(-0.6, 0.6),
+        rng.range(-0.6, 0.6),
+        rng.range(-0.6, 0.6),
+    ) * ext;
+    let mut dir = (target - origin).normalize_or(Vec3::X);
+    // Some axis-parallel and in-plane rays.
+    match rng.next() % 8 {
+        0 => dir = Vec3::new(dir.x.signum(), 0.0, 0.0),
+        1 => dir = Vec3::new(0.0, dir.y, dir.z).normalize_or(Vec3::Y),
+        _ => {}
+    }
+    Ray::new(origin, dir)
+}
+
+/// Compares kd-tree and DDA on `rays` random rays per tree layout; returns the hit count.
+fn compare_scene<T: Voxel>(
+    grid: &Grid,
+    voxels: Vec<T>,
+    isos: &[f32],
+    rng: &mut Lcg,
+    rays: usize,
+) -> usize {
+    let mut hits = 0;
+    let buf = VoxelBuffer::from_vec(voxels);
+    for unstored in [0, 2, 3] {
+        let scene = GridScene::new(
+            grid,
+            buf.clone(),
+            Intersector::Exact,
+            KdTreeConfig {
+                unstored_levels: unstored,
+            },
+        )
+        .unwrap();
+        let b = scene.world_bounds();
+        let frame = scene.frame();
+        let isoset = IsoSet::<T>::new(isos);
+        for _ in 0..rays {
+            let ray = random_ray(rng, b.min, b.max);
+            let local = frame.to_local(&ray);
+            let kd = scene.cell_hit_with(&local, 0.0, f32::INFINITY, &isoset, Exact, &mut NoStats);
+            let dda =
+                scene
+                    .dda()
+                    .cell_hit_with(&local, 0.0, f32::INFINITY, &isoset, Exact, &mut NoStats);
+            match (kd, dda) {
+                (None, None) => {}
+                (Some(a), Some(d)) => {
+                    hits += 1;
+                    let tol = 1e-5 * (1.0 + a.t.abs());
+                    assert!(
+                        (a.t - d.t).abs() <= tol,
+                        "t differs: kd {a:?} dda {d:?} ray {ray:?} dims {:?}",
+                        grid.dims()
+                    );
+                    assert_eq!(a.surface, d.surface, "surface: kd {a:?} dda {d:?}");
+                    if a.t != d.t || a.cell != d.cell {
+                        // Only a hit on a shared cell boundary may name another cell.
+                        let diff = (0..3).map(|i| a.cell[i].abs_diff(d.cell[i])).max();
+                        assert!(diff <= Some(1), "cells {a:?} vs {d:?}");
+                    }
+                }
+                (a, d) => panic!(
+                    "kd {a:?} vs dda {d:?} for ray {ray:?}, dims {:?}, isos {isos:?}, unstored {unstored}",
+                    grid.dims()
+                ),
+            }
+            // Through the public IsoScene interface too (world t and a finite unit normal).
+            let hit = scene.first_hit(&ray, 0.0, f32::INFINITY, isos, &mut NoStats);
+            assert_eq!(hit.map(|h| h.t), kd.map(|h| h.t));
+            if let Some(h) = hit {
+                assert!(h.normal.is_finite() && (h.normal.length() - 1.0).abs() < 1e-4);
+            }
+        }
+    }
+    hits
+}
+
+fn dims_strategy() -> impl Strategy<Value = [usize; 3]> {
+    let d = prop_oneof![
+        1usize..=9,
+        Just(2usize),
+        Just(15),
+        Just(17),
+        Just(16),
+        Just(33)
+    ];
+    [d.clone(), d.clone(), d]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    #[test]
+    fn kd_tree_equals_dda_walk_u8(dims in dims_strategy(), seed in any::<u64>(), explicit in any::<bool>(), niso in 1usize..4) {
+        let mut rng = Lcg(seed);
+        let grid = grid_for(dims, &mut rng, explicit);
+        let n = dims.iter().product::<usize>();
+        // Smooth-ish field plus noise so that surfaces are sparse.
+        let voxels: Vec<u8> = (0..n).map(|i| {
+            let x = (i % dims[0]) as f32;
+            let y = ((i / dims[0]) % dims[1]) as f32;
+            let z = (i / (dims[0] * dims[1])) as f32;
+            let v = 128.0 + 60.0 * (0.7 * x).sin() * (0.5 * y + 0.3 * z).cos() + rng.range(-20.0, 20.0);
+            v.clamp(0.0, 255.0) as u8
+        }).collect();
+        let isos: Vec<f32> = (0..niso).map(|i| if i == 0 { 128.0 } else { rng.range(60.0, 200.0).round() + 0.5 * (i % 2) as f32 }).collect();
+        let _hits = compare_scene(&grid, voxels, &isos, &mut rng, 60);
+    }
+
+    #[test]
+    fn kd_tree_equals_dda_walk_f32_with_void(dims in dims_strategy(), seed in any::<u64>(), explicit in any::<bool>()) {
+        let mut rng = Lcg(seed);
+        let grid = grid_for(dims, &mut rng, explicit);
+        let n = dims.iter().product::<usize>();
+        let voxels: Vec<f32> = (0..n).map(|_| {
+            match rng.next() % 40 {
+                0 => f32::NAN,
+                1 => f32::INFINITY,
+                _ => rng.range(-1.0, 1.0),
+            }
+        }).collect();
+        let isos = [rng.range(-0.5, 0.5), 0.9];
+        let _hits = compare_scene(&grid, voxels, &isos, &mut rng, 60);
+    }
+}
+
+#[test]
+fn dda_comparisons_see_many_hits() {
+    // Run one fixed comparison and check that a good share of rays hit, so the property
+    // tests above compare hits and not only misses.
+    let mut rng = Lcg(5);
+    let dims = [17, 9, 12];
+    let grid = grid_for(dims, &mut rng, false);
+    let n = dims.iter().product::<usize>();
+    let voxels: Vec<f32> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+    let hits = compare_scene(&grid, voxels, &[0.0, 0.5], &mut rng, 200);
+    assert!(hits > 300, "{hits} of 600");
+}
+
+#[test]
+fn one_sample_thick_volumes_have_no_surface_and_do_not_panic() {
+    for dims in [[1, 5, 5], [5, 1, 5], [1, 1, 1], [7, 7, 1]] {
+        let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+        let n = dims.iter().product();
+        let scene = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec((0..n).map(|i| i as f32).collect::<Vec<_>>()),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        let ray = Ray::new(Vec3::new(-5.0, 0.5, 0.5), Vec3::X);
+        assert_eq!(
+            scene.first_hit(&ray, 0.0, f32::INFINITY, &[1.0], &mut NoStats),
+            None
+        );
+        assert!(scene.memory_bytes() < 1024);
+    }
+}
+
+/// Node ranges of a naive recursive pointer tree, keyed by (level, node index).
+#[derive(Debug)]
+struct PtrNode {
+    range: Option<(f32, f32)>,
+    children: Vec<PtrNode>,
+}
+
+fn build_ptr(vox: &[f32], dims: [usize; 3], lo: [usize; 3], ext: [usize; 3]) -> PtrNode {
+    let cells = dims.map(|d| d - 1);
+    let hi = [0, 1, 2].map(|a| (lo[a] + ext[a]).min(cells[a]));
+    if ext == [1, 1, 1] {
+        let c = volume_core::intersect::cell_corners(vox, dims, lo);
+        return PtrNode {
+            range: corner_range(&c),
+            children: vec![],
+        };
+    }
+    let mut axis = 0;
+    for a in 1..3 {
+        if ext[a] > ext[axis] {
+            axis = a;
+        }
+    }
+    let mut half = ext;
+    half[axis] /= 2;
+    let mut children = vec![];
+    for side in 0..2 {
+        let mut clo = lo;
+        clo[axis] += side * half[axis];
+        if clo[axis] < cells[axis] {
+            children.push(build_ptr(vox, dims, clo, half));
+        }
+    }
+    let _ = hi;
+    let range = children
+        .iter()
+        .filter_map(|c| c.range)
+        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+    PtrNode { range, children }
+}
+
+fn check_ptr(
+    tree: &KdTree<f32>,
+    n: &PtrNode,
+    level: usize,
+    idx: [usize; 3],
+    axis_of: &dyn Fn(usize) -> usize,
+) {
+    if let Some(r) = tree.node_range(level, idx) {
+        let expect = n.range.unwrap_or((f32::MAX, f32::MIN));
+        assert_eq!(r, expect, "level {level} node {idx:?}");
+    }
+    if n.children.is_empty() {
+        return;
+    }
+    let a = axis_of(level);
+    for (side, c) in n.children.iter().enumerate() {
+        let mut ci = idx;
+        ci[a] = 2 * idx[a] + side;
+        check_ptr(tree, c, level + 1, ci, axis_of);
+    }
+}
+
+#[test]
+fn slim_layout_equals_naive_pointer_tree() {
+    let mut rng = Lcg(7);
+    for dims in [[2, 2, 2], [3, 5, 2], [9, 4, 6], [17, 3, 10], [6, 6, 6]] {
+        let n: usize = dims.iter().product();
+        let vox: Vec<f32> = (0..n)
+            .map(|_| {
+                if rng.next() % 13 == 0 {
+                    f32::NAN
+                } else {
+                    rng.range(-5.0, 5.0)
+                }
+            })
+            .collect();
+        let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+        let frame = volume_core::intersect::TraversalFrame::new(&grid);
+        let tree = KdTree::build(&vox, dims, &frame, KdTreeConfig { unstored_levels: 0 });
+        let cells = dims.map(|d| d - 1);
+        let pad = cells.map(usize::next_power_of_two);
+        let root = build_ptr(&vox, dims, [0; 3], pad);
+        // Axis per level: replay the extent halving.
+        let mut axes = vec![];
+        let mut e = pad;
+        while e != [1, 1, 1] {
+            let mut a = 0;
+            for b in 1..3 {
+                if e[b] > e[a] {
+                    a = b;
+                }
+            }
+            axes.push(a);
+            e[a] /= 2;
+        }
+        assert_eq!(axes.len(), tree.depth());
+        check_ptr(&tree, &root, 0, [0; 3], &|l| axes[l]);
+    }
+}
+
+#[test]
+fn refit_after_edits_equals_rebuild() {
+    let mut rng = Lcg(11);
+    let dims = [19, 12, 9];
+    let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+    let n: usize = dims.iter().product();
+    let vox: Vec<i16> = (0..n).map(|_| (rng.next() % 1000) as i16).collect();
+    let mut scene = GridScene::new(
+        &grid,
+        VoxelBuffer::from_vec(vox),
+        Intersector::Exact,
+        KdTreeConfig { unstored_levels: 1 },
+    )
+    .unwrap();
+    for _ in 0..20 {
+        let lo = [0, 1, 2].map(|a| (rng.next() as usize) % dims[a]);
+        let hi = [0, 1, 2].map(|a| (lo[a] + (rng.next() as usize) % 4).min(dims[a] - 1));
+        let val = (rng.next() % 3000) as i16 - 1000;
+        scene.edit_voxels(lo, hi, |v| {
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        v[i + dims[0] * (j + dims[1] * k)] = val;
+                    }
+                }
+            }
+        });
+        let rebuilt = KdTree::build(
+            scene.voxels(),
+            dims,
+            scene.frame(),
+            KdTreeConfig { unstored_levels: 1 },
+        );
+        let tree = scene.tree();
+        for level in 0..tree.stored_levels() {
+            // Walk all node indices that exist at this level.
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        let idx = [i, j, k];
+                        assert_eq!(
+                            tree.node_range(level, idx),
+                            rebuilt.node_range(level, idx),
+                            "level {level} node {idx:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    // Spacing change: only split tables; hits equal a fresh build on the new grid.
+    let grid2 = Grid::uniform(dims, [5.0, 0.0, -2.0], [0.5, 2.0, 1.5]).unwrap();
+    scene.set_grid(&grid2).unwrap();
+    let fresh = GridScene::new(
+        &grid2,
+        VoxelBuffer::from_vec(scene.voxels().to_vec()),
+        Intersector::Exact,
+        KdTreeConfig { unstored_levels: 1 },
+    )
+    .unwrap();
+    let b = fresh.world_bounds();
+    let mut hits = 0;
+    for _ in 0..300 {
+        let ray = random_ray(&mut rng, b.min, b.max);
+        let x = scene.first_hit(&ray, 0.0, f32::INFINITY, &[400.5], &mut NoStats);
+        let y = fresh.first_hit(&ray, 0.0, f32::INFINITY, &[400.5], &mut NoStats);
+        assert_eq!(x, y);
+        hits += usize::from(x.is_some());
+    }
+    assert!(hits > 30, "too few hits to be meaningful: {hits}");
+}
+
+#[test]
+fn sphere_distance_field_hits_within_bound() {
+    // f = |p − c| sampled at spacing h on an anisotropic grid far from the origin; the
+    // trilinear interpolant of a distance field differs from it by at most
+    // Σ h_a²/8 · max|∂²f/∂x_a²| ≤ Σ h_a² / (8 r_min), r_min the smallest radius in the cell.
+    let dims = [48, 40, 44];
+    let spacing = [0.5f64, 0.6, 0.55];
+    let origin = [1e6, -2e5, 3e5];
+    let grid = Grid::uniform(dims, origin, spacing).unwrap();
+    let c = [0, 1, 2].map(|a| origin[a] + spacing[a] * (dims[a] - 1) as f64 * 0.5);
+    let r = 8.0f64;
+    let mut vox = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let p = [i, j, k];
+                let d2: f64 = (0..3)
+                    .map(|a| (origin[a] + spacing[a] * p[a] as f64 - c[a]).powi(2))
+                    .sum();
+                vox.push(d2.sqrt() as f32);
+            }
+        }
+    }
+    let scene = GridScene::new(
+        &grid,
+        VoxelBuffer::from_vec(vox),
+        Intersector::Exact,
+        KdTreeConfig::default(),
+    )
+    .unwrap();
+    let bound = spacing.iter().map(|h| h * h).sum::<f64>() / (8.0 * (r - 1.0));
+    let mut rng = Lcg(3);
+    let cv = glam::DVec3::from(c);
+    let mut stats = CountStats::default();
+    for _ in 0..500 {
+        // Rays from 20 units away aimed near the centre; the camera sits at 1e6 too.
+        let dir = glam::DVec3::new(
+            f64::from(rng.range(-1.0, 1.0)),
+            f64::from(rng.range(-1.0, 1.0)),
+            f64::from(rng.range(-1.0, 1.0)),
+        )
+        .normalize();
+        let eye = cv - dir * 20.0;
+        let aim = cv
+            + glam::DVec3::new(
+                f64::from(rng.range(-3.0, 3.0)),
+                f64::from(rng.range(-3.0, 3.0)),
+                f64::from(rng.range(-3.0, 3.0)),
+            );
+        let d = (aim - eye).normalize();
+        // Keep the ray in f64 relative to the eye: f32 world coordinates near 1e6 have
+        // 0.06 ulps, which is the caller's precision, not the tracer's.
+        let ray = Ray::new(eye.as_vec3(), d.as_vec3());
+        let eye32 = ray.origin.as_dvec3();
+        let hit = scene
+            .first_hit(&ray, 0.0, f32::INFINITY, &[r as f32], &mut stats)
+            .expect("ray aimed inside the sphere hits it");
+        let p = eye32 + ray.dir.as_dvec3() * f64::from(hit.t);
+        let err = ((p - cv).length() - r).abs();
+        // ulp(1e6) in f32 for the ray origin and 1e-5 relative in t.
+        let ray_precision = 0.07 + 1e-5 * f64::from(hit.t);
+        assert!(err <= bound + ray_precision, "error {err} > bound {bound}");
+        let n = hit.normal.as_dvec3();
+        let radial = (p - cv).normalize();
+        assert!(n.dot(radial) > 0.98, "normal {n:?} vs radial {radial:?}");
+    }
+    let counts = stats.counts();
+    assert_eq!(counts.rays, 500);
+    assert!(counts.leaves_visited > 0 && counts.nodes_visited > 0);
+}
