@@ -21,6 +21,7 @@
 //! `formats/README.md`); `open` reports NIfTI files as an unknown format with that note.
 
 pub mod error;
+pub mod mesh;
 pub mod nrrd;
 pub mod raw;
 pub mod series;
