@@ -1,6 +1,30 @@
 //! Rendering: the [`scene::IsoScene`] contract that acceleration structures implement, and
-//! the renderer built on it.
+//! the one renderer built on it (shared by rectilinear and tetrahedral data, the CLI and the
+//! GUI).
+//!
+//! - [`camera`]: pinhole/orthographic [`Camera`] (JSON), primary rays, orbit framing.
+//! - [`settings`]: [`Surface`]s (isovalue, colour, opacity), [`ClipRegion`]s, the [`Light`]
+//!   and [`RenderSettings`].
+//! - [`clip`]: the kept parameter intervals of a ray under any number of clip regions.
+//! - [`renderer`]: [`render`] — tiles over rayon, primary packets, transparency by depth
+//!   peeling, shadow rays, progressive scale, cancellation — producing a [`Frame`]
+//!   (RGBA8 + first-hit depth + statistics).
+//! - [`analytic`]: an exact sphere-field scene, the truth for renderer tests.
+//!
+//! The renderer only talks to data through [`IsoScene`], so it is generic over the
+//! acceleration structure and monomorphized (no dynamic dispatch per ray).
 
+pub mod analytic;
+pub mod camera;
+pub mod clip;
+pub mod renderer;
 pub mod scene;
+pub mod settings;
+mod shade;
 
+pub use camera::{Camera, CameraError, Projection, RayGen};
+pub use renderer::{Frame, RayCounts, TILE, render};
 pub use scene::{CountStats, Hit, IsoScene, NoStats, Stats, TraversalCounts};
+pub use settings::{
+    ClipRegion, Keep, Light, LightKind, MAX_IMAGE_SIDE, RenderSettings, SettingsError, Surface,
+};

@@ -1,0 +1,388 @@
+//! Cameras: pinhole (vertical field of view) and orthographic, and their primary rays.
+//!
+//! Pixel `(i, j)`, row 0 at the top, of a `W×H` image gets the ray through its centre:
+//! `u = (2(i+0.5)/W − 1)·tan(vfov/2)·W/H`, `v = (1 − 2(j+0.5)/H)·tan(vfov/2)`, direction
+//! `normalize(forward + u·right + v·up)` (issue 3, "Camera"). Directions are unit length, so
+//! the ray parameter `t` is a world distance. Orthographic cameras use the same `u, v` with
+//! `tan(vfov/2)` replaced by `ortho_height/2` as offsets of the ray origin from the eye.
+//!
+//! Cameras are stored as JSON (`--camera cam.json`, GUI bookmarks):
+//! `{"eye":[x,y,z],"target":[x,y,z],"up":[x,y,z],"vfov_deg":40,"projection":"pinhole"}`;
+//! unknown fields are ignored, `up`, `vfov_deg` and `projection` have defaults.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::math::{Aabb, Ray};
+
+/// How rays leave the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Projection {
+    /// All rays start at the eye; the image spans the vertical field of view `vfov_deg`.
+    #[default]
+    #[serde(alias = "perspective")]
+    Pinhole,
+    /// Parallel rays along the view direction; the image spans `ortho_height` world units.
+    #[serde(alias = "ortho")]
+    Orthographic,
+}
+
+/// A camera in world units.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub target: Vec3,
+    #[serde(default = "default_up")]
+    pub up: Vec3,
+    /// Vertical field of view in degrees (pinhole), in `(0, 180)`.
+    #[serde(default = "default_vfov")]
+    pub vfov_deg: f32,
+    #[serde(default)]
+    pub projection: Projection,
+    /// Height of the orthographic view in world units. When absent, the height that the
+    /// pinhole view has at the target distance: `2·|target − eye|·tan(vfov/2)`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ortho_height: Option<f32>,
+}
+
+fn default_up() -> Vec3 {
+    Vec3::Z
+}
+
+fn default_vfov() -> f32 {
+    40.0
+}
+
+/// Why a camera cannot produce rays.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum CameraError {
+    #[error("camera {field} {value:?} is not finite")]
+    NotFinite {
+        field: &'static str,
+        value: [f32; 3],
+    },
+    #[error("camera eye and target coincide at {0:?}")]
+    EyeIsTarget([f32; 3]),
+    #[error("camera up {up:?} is zero or parallel to the view direction {forward:?}")]
+    BadUp { up: [f32; 3], forward: [f32; 3] },
+    #[error("camera vfov_deg {0} is outside (0, 180)")]
+    BadFov(f32),
+    #[error("camera ortho_height {0} must be finite and positive")]
+    BadOrthoHeight(f32),
+    #[error("image size {width}x{height} must be at least 1x1")]
+    EmptyImage { width: u32, height: u32 },
+}
+
+impl Camera {
+    /// A pinhole camera on a sphere around the centre of `bounds`, looking at the centre with
+    /// `+z` up, far enough away that the bounding sphere fits in the vertical field of view
+    /// (and the horizontal one for images at least as wide as tall).
+    ///
+    /// Azimuth is measured in the xy plane from `+x` towards `+y`; elevation from the xy plane
+    /// towards `+z`, clamped to ±89.5° so that `up` never becomes parallel to the view.
+    pub fn orbit(bounds: &Aabb, azimuth_deg: f32, elevation_deg: f32, vfov_deg: f32) -> Camera {
+        let (centre, radius) = if bounds.is_empty() || !bounds.extent().is_finite() {
+            (Vec3::ZERO, 1.0)
+        } else {
+            (bounds.center(), (bounds.extent().length() * 0.5).max(1e-6))
+        };
+        let vfov = if vfov_deg.is_finite() && vfov_deg > 0.0 && vfov_deg < 180.0 {
+            vfov_deg
+        } else {
+            default_vfov()
+        };
+        let (az, el) = (
+            azimuth_deg.to_radians(),
+            elevation_deg.clamp(-89.5, 89.5).to_radians(),
+        );
+        let offset = Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
+        // 5 % margin so that the silhouette does not touch the image border.
+        let distance = 1.05 * radius / (0.5 * vfov.to_radians()).sin();
+        Camera {
+            eye: centre + offset * distance,
+            target: centre,
+            up: Vec3::Z,
+            vfov_deg: vfov,
+            projection: Projection::Pinhole,
+            ortho_height: None,
+        }
+    }
+
+    /// Checks that the camera defines an orthonormal view basis.
+    pub fn validate(&self) -> Result<(), CameraError> {
+        for (field, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !v.is_finite() {
+                return Err(CameraError::NotFinite {
+                    field,
+                    value: v.to_array(),
+                });
+            }
+        }
+        let forward = self.target - self.eye;
+        if forward.length_squared() == 0.0 || !forward.normalize_or_zero().is_finite() {
+            return Err(CameraError::EyeIsTarget(self.eye.to_array()));
+        }
+        let forward = forward.normalize();
+        if forward.cross(self.up).length_squared() <= 1e-12 * self.up.length_squared()
+            || self.up.length_squared() == 0.0
+        {
+            return Err(CameraError::BadUp {
+                up: self.up.to_array(),
+                forward: forward.to_array(),
+            });
+        }
+        if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
+            return Err(CameraError::BadFov(self.vfov_deg));
+        }
+        if let Some(h) = self.ortho_height
+            && !(h.is_finite() && h > 0.0)
+        {
+            return Err(CameraError::BadOrthoHeight(h));
+        }
+        Ok(())
+    }
+
+    /// Right, up and forward unit vectors (right-handed: `right = forward × up`).
+    ///
+    /// Never panics: a degenerate camera (see [`Camera::validate`]) falls back to looking
+    /// along `−z` and/or an arbitrary perpendicular `up`, so check `validate` first.
+    pub fn basis(&self) -> (Vec3, Vec3, Vec3) {
+        let forward = (self.target - self.eye)
+            .try_normalize()
+            .unwrap_or(Vec3::NEG_Z);
+        let right = forward
+            .cross(self.up)
+            .try_normalize()
+            .unwrap_or_else(|| forward.any_orthonormal_vector());
+        let up = right.cross(forward);
+        (right, up, forward)
+    }
+
+    /// Half the image height: `tan(vfov/2)` at unit distance (pinhole) or in world units
+    /// (orthographic).
+    pub fn half_height(&self) -> f32 {
+        match self.projection {
+            Projection::Pinhole => (0.5 * self.vfov_deg.to_radians()).tan(),
+            Projection::Orthographic => {
+                let h = self.ortho_height.unwrap_or_else(|| {
+                    2.0 * (self.target - self.eye).length()
+                        * (0.5 * self.vfov_deg.to_radians()).tan()
+                });
+                0.5 * h
+            }
+        }
+    }
+
+    /// The ray through the centre of pixel `(i, j)` of a `width × height` image, row 0 at the
+    /// top. See the module docs for the formula.
+    pub fn primary_ray(&self, i: u32, j: u32, width: u32, height: u32) -> Ray {
+        RayGen::new(self, width, height).ray_at(i as f32 + 0.5, j as f32 + 0.5)
+    }
+}
+
+/// A camera prepared for one image size: the basis and scale factors computed once, so that
+/// generating a ray costs a handful of multiply-adds.
+#[derive(Debug, Clone, Copy)]
+pub struct RayGen {
+    eye: Vec3,
+    right: Vec3,
+    up: Vec3,
+    forward: Vec3,
+    /// `2/W` and `2/H`.
+    inv_w2: f32,
+    inv_h2: f32,
+    /// `half_height · W/H` and `half_height`.
+    scale_u: f32,
+    scale_v: f32,
+    orthographic: bool,
+}
+
+impl RayGen {
+    /// Prepares `camera` for a `width × height` image (sizes of 0 are treated as 1).
+    pub fn new(camera: &Camera, width: u32, height: u32) -> Self {
+        let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+        let (right, up, forward) = camera.basis();
+        let half = camera.half_height();
+        Self {
+            eye: camera.eye,
+            right,
+            up,
+            forward,
+            inv_w2: 2.0 / w,
+            inv_h2: 2.0 / h,
+            scale_u: half * w / h,
+            scale_v: half,
+            orthographic: camera.projection == Projection::Orthographic,
+        }
+    }
+
+    /// The ray through continuous pixel position `(x, y)` (pixel `(i, j)` spans
+    /// `[i, i+1) × [j, j+1)`, so its centre is `(i + 0.5, j + 0.5)`).
+    #[inline]
+    pub fn ray_at(&self, x: f32, y: f32) -> Ray {
+        let u = (x * self.inv_w2 - 1.0) * self.scale_u;
+        let v = (1.0 - y * self.inv_h2) * self.scale_v;
+        if self.orthographic {
+            Ray::new(self.eye + self.right * u + self.up * v, self.forward)
+        } else {
+            Ray::new(
+                self.eye,
+                (self.forward + self.right * u + self.up * v).normalize(),
+            )
+        }
+    }
+
+    /// The unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
+    /// The camera position.
+    pub fn eye(&self) -> Vec3 {
+        self.eye
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The issue's formula, evaluated independently in f64.
+    fn spec_dir(cam: &Camera, i: u32, j: u32, w: u32, h: u32) -> [f64; 3] {
+        let e = cam.eye.as_dvec3();
+        let f = (cam.target.as_dvec3() - e).normalize();
+        let r = f.cross(cam.up.as_dvec3()).normalize();
+        let up = r.cross(f);
+        let tan = (f64::from(cam.vfov_deg).to_radians() / 2.0).tan();
+        let (wf, hf) = (f64::from(w), f64::from(h));
+        let u = (2.0 * (f64::from(i) + 0.5) / wf - 1.0) * tan * wf / hf;
+        let v = (1.0 - 2.0 * (f64::from(j) + 0.5) / hf) * tan;
+        (f + r * u + up * v).normalize().to_array()
+    }
+
+    #[test]
+    fn pinhole_rays_follow_the_spec_formula() {
+        let cam = Camera {
+            eye: Vec3::new(3.0, -2.0, 1.5),
+            target: Vec3::new(0.5, 0.25, -0.5),
+            up: Vec3::new(0.1, 0.2, 1.0),
+            vfov_deg: 37.0,
+            projection: Projection::Pinhole,
+            ortho_height: None,
+        };
+        cam.validate().unwrap();
+        let (w, h) = (64, 48);
+        for (i, j) in [(0, 0), (63, 0), (0, 47), (63, 47), (31, 23), (17, 40)] {
+            let ray = cam.primary_ray(i, j, w, h);
+            let want = spec_dir(&cam, i, j, w, h);
+            for a in 0..3 {
+                assert!(
+                    (f64::from(ray.dir[a]) - want[a]).abs() < 2e-6,
+                    "pixel ({i},{j}) axis {a}: {} vs {}",
+                    ray.dir[a],
+                    want[a]
+                );
+            }
+            assert!((ray.dir.length() - 1.0).abs() < 1e-6);
+            assert_eq!(ray.origin, cam.eye);
+        }
+        // Row 0 is at the top: its rays point further "up" than the last row's.
+        let (_, up, _) = cam.basis();
+        assert!(cam.primary_ray(5, 0, w, h).dir.dot(up) > cam.primary_ray(5, 47, w, h).dir.dot(up));
+        // Column 0 is on the left.
+        let (right, _, _) = cam.basis();
+        assert!(cam.primary_ray(0, 5, w, h).dir.dot(right) < 0.0);
+    }
+
+    #[test]
+    fn orthographic_rays_are_parallel_and_span_ortho_height() {
+        let cam = Camera {
+            eye: Vec3::new(0.0, 0.0, 10.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            vfov_deg: 40.0,
+            projection: Projection::Orthographic,
+            ortho_height: Some(4.0),
+        };
+        let (w, h) = (8, 4);
+        let top_left = cam.primary_ray(0, 0, w, h);
+        let bottom_right = cam.primary_ray(w - 1, h - 1, w, h);
+        assert_eq!(top_left.dir, Vec3::NEG_Z);
+        assert_eq!(bottom_right.dir, Vec3::NEG_Z);
+        // Pixel centres: v = (1 − 1/4)·2 = 1.5, u = (1/8 − 1)·2·2 = −3.5; right = forward × up
+        // = (+1, 0, 0) for forward −z and up +y.
+        assert!((top_left.origin - Vec3::new(-3.5, 1.5, 10.0)).length() < 1e-6);
+        assert!((bottom_right.origin - Vec3::new(3.5, -1.5, 10.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn camera_json_round_trip_ignores_unknown_fields() {
+        let json = r#"{"eye":[1,2,3],"target":[0,0,0],"up":[0,0,1],"vfov_deg":30,
+                       "projection":"pinhole","note":"from the GUI","zoom":2}"#;
+        let cam: Camera = serde_json::from_str(json).unwrap();
+        assert_eq!(cam.eye, Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(cam.vfov_deg, 30.0);
+        assert_eq!(cam.projection, Projection::Pinhole);
+        let back: Camera = serde_json::from_str(&serde_json::to_string(&cam).unwrap()).unwrap();
+        assert_eq!(back, cam);
+        let ortho: Camera = serde_json::from_str(
+            r#"{"eye":[0,0,5],"target":[0,0,0],"up":[0,1,0],"projection":"orthographic","ortho_height":3}"#,
+        )
+        .unwrap();
+        assert_eq!(ortho.projection, Projection::Orthographic);
+        assert_eq!(ortho.ortho_height, Some(3.0));
+        assert_eq!(ortho.vfov_deg, 40.0);
+        assert!(
+            serde_json::from_str::<Camera>(
+                r#"{"eye":[0,0,5],"target":[0,0,0],"projection":"fisheye"}"#
+            )
+            .is_err()
+        );
+    }
+
+    #[test]
+    fn validation_names_the_problem() {
+        let mut cam = Camera::orbit(&Aabb::new(Vec3::ZERO, Vec3::ONE), 30.0, 20.0, 40.0);
+        assert_eq!(cam.validate(), Ok(()));
+        cam.up = (cam.target - cam.eye) * 2.0;
+        assert!(matches!(cam.validate(), Err(CameraError::BadUp { .. })));
+        cam.up = Vec3::Z;
+        cam.target = cam.eye;
+        assert!(matches!(cam.validate(), Err(CameraError::EyeIsTarget(_))));
+        cam.target = Vec3::ZERO;
+        cam.vfov_deg = 180.0;
+        assert_eq!(cam.validate(), Err(CameraError::BadFov(180.0)));
+        cam.vfov_deg = 40.0;
+        cam.eye.x = f32::NAN;
+        assert!(matches!(
+            cam.validate(),
+            Err(CameraError::NotFinite { field: "eye", .. })
+        ));
+    }
+
+    #[test]
+    fn orbit_frames_the_bounds() {
+        let b = Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 2.0, 4.0));
+        for (az, el) in [(0.0, 0.0), (30.0, 20.0), (200.0, -60.0), (10.0, 90.0)] {
+            let cam = Camera::orbit(&b, az, el, 40.0);
+            cam.validate().unwrap();
+            assert_eq!(cam.target, b.center());
+            // Every corner projects inside the image.
+            let (right, up, forward) = cam.basis();
+            let tan = (20.0f32).to_radians().tan();
+            for c in 0..8 {
+                let p = Vec3::new(
+                    if c & 1 == 0 { b.min.x } else { b.max.x },
+                    if c & 2 == 0 { b.min.y } else { b.max.y },
+                    if c & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                let d = p - cam.eye;
+                let z = d.dot(forward);
+                assert!(z > 0.0);
+                assert!((d.dot(up) / z).abs() < tan && (d.dot(right) / z).abs() < tan);
+            }
+        }
+    }
+}

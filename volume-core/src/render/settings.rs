@@ -1,0 +1,343 @@
+//! What to render: isosurfaces with their look, clip regions, the light and the image size.
+//!
+//! All types are serde-serializable so that the GUI can save them in a session file.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// One isosurface and its look.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Surface {
+    pub isovalue: f32,
+    /// Linear RGB in `[0, 1]`.
+    pub color: [f32; 3],
+    /// `1` is opaque; below `1` the surface is peeled (thesis 8.6, "transparent depth
+    /// peeling"); `0` behaves like an invisible surface.
+    pub opacity: f32,
+    pub visible: bool,
+}
+
+impl Surface {
+    /// An opaque, visible surface.
+    pub fn new(isovalue: f32, color: [f32; 3]) -> Self {
+        Self {
+            isovalue,
+            color,
+            opacity: 1.0,
+            visible: true,
+        }
+    }
+
+    /// Whether the renderer traces this surface at all.
+    pub fn is_active(&self) -> bool {
+        self.visible && self.opacity > 0.0 && self.isovalue.is_finite()
+    }
+}
+
+/// Which side of a clip box is kept.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Keep {
+    #[default]
+    Inside,
+    Outside,
+}
+
+/// A region of space that clips the isosurfaces. The kept set of several regions is the
+/// intersection of each region's kept set. Cut faces are not drawn (no caps).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ClipRegion {
+    /// An axis-aligned world box (closed); keeps its inside or its outside.
+    Box { min: Vec3, max: Vec3, keep: Keep },
+    /// A half-space: keeps the points with `normal · x <= offset`.
+    Plane { normal: Vec3, offset: f32 },
+}
+
+/// Where the light comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LightKind {
+    /// A light at the eye, moving with the camera (the default; casts no visible shadows).
+    #[default]
+    Headlight,
+    /// A light at infinity; `dir` points from the surface *towards* the light.
+    Directional { dir: Vec3 },
+    /// A point light at `pos` (world units).
+    Point { pos: Vec3 },
+}
+
+/// One light and the Blinn–Phong material constants used for every surface.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Light {
+    pub kind: LightKind,
+    /// Ambient term (also what a shadowed point receives).
+    pub ambient: f32,
+    pub diffuse: f32,
+    /// White specular highlight strength.
+    pub specular: f32,
+    pub shininess: f32,
+}
+
+impl Default for Light {
+    fn default() -> Self {
+        Self {
+            kind: LightKind::Headlight,
+            ambient: 0.15,
+            diffuse: 0.75,
+            specular: 0.25,
+            shininess: 40.0,
+        }
+    }
+}
+
+/// Everything about a frame except the scene and the camera.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub surfaces: Vec<Surface>,
+    pub clips: Vec<ClipRegion>,
+    /// The most surface layers composited per pixel (transparency); at least 1.
+    pub max_layers: u32,
+    /// Shadow rays towards `light` (meaningful for directional and point lights).
+    pub shadows: bool,
+    pub light: Light,
+    /// Linear RGB of pixels whose rays miss (or pass through transparent layers).
+    pub background: [f32; 3],
+    /// Count traversal statistics into [`crate::render::Frame::counts`].
+    pub collect_stats: bool,
+    /// Progressive rendering: one ray per `scale × scale` pixel block, replicated over the
+    /// block (coarse first for interaction); 1 is full resolution.
+    pub scale: u32,
+    /// Primary rays in packets (`IsoScene::first_hit_packet`) rather than one by one.
+    pub packets: bool,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            width: 512,
+            height: 512,
+            surfaces: Vec::new(),
+            clips: Vec::new(),
+            max_layers: 4,
+            shadows: false,
+            light: Light::default(),
+            background: [0.08, 0.08, 0.1],
+            collect_stats: false,
+            scale: 1,
+            packets: true,
+        }
+    }
+}
+
+/// Largest accepted image side (keeps `width·height·4` far from overflow).
+pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
+
+/// Settings the renderer refuses.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SettingsError {
+    #[error("image size {width}x{height} must be between 1x1 and {max}x{max}", max = MAX_IMAGE_SIDE)]
+    ImageSize { width: u32, height: u32 },
+    #[error("surface {index}: isovalue {value} is not finite")]
+    Isovalue { index: usize, value: f32 },
+    #[error("surface {index}: opacity {value} is outside [0, 1]")]
+    Opacity { index: usize, value: f32 },
+    #[error("surface {index}: color {value:?} is outside [0, 1]")]
+    Color { index: usize, value: [f32; 3] },
+    #[error("clip region {index}: {reason}")]
+    Clip { index: usize, reason: String },
+    #[error("light: {0}")]
+    Light(String),
+    #[error("background color {0:?} is outside [0, 1]")]
+    Background([f32; 3]),
+    #[error("scale must be at least 1")]
+    Scale,
+}
+
+fn unit_color(c: [f32; 3]) -> bool {
+    c.iter().all(|x| (0.0..=1.0).contains(x))
+}
+
+impl RenderSettings {
+    /// Checks every field; the renderer itself never panics on bad settings but may then
+    /// draw nonsense (e.g. a NaN isovalue is skipped).
+    pub fn validate(&self) -> Result<(), SettingsError> {
+        if self.width == 0
+            || self.height == 0
+            || self.width > MAX_IMAGE_SIDE
+            || self.height > MAX_IMAGE_SIDE
+        {
+            return Err(SettingsError::ImageSize {
+                width: self.width,
+                height: self.height,
+            });
+        }
+        for (index, s) in self.surfaces.iter().enumerate() {
+            if !s.isovalue.is_finite() {
+                return Err(SettingsError::Isovalue {
+                    index,
+                    value: s.isovalue,
+                });
+            }
+            if !(0.0..=1.0).contains(&s.opacity) {
+                return Err(SettingsError::Opacity {
+                    index,
+                    value: s.opacity,
+                });
+            }
+            if !unit_color(s.color) {
+                return Err(SettingsError::Color {
+                    index,
+                    value: s.color,
+                });
+            }
+        }
+        for (index, c) in self.clips.iter().enumerate() {
+            let reason = match *c {
+                ClipRegion::Box { min, max, .. } => {
+                    if !(min.is_finite() && max.is_finite()) {
+                        Some("box corners must be finite".to_string())
+                    } else if min.cmpgt(max).any() {
+                        Some(format!("box min {min} exceeds max {max} on some axis"))
+                    } else {
+                        None
+                    }
+                }
+                ClipRegion::Plane { normal, offset } => {
+                    if !(normal.is_finite() && offset.is_finite()) {
+                        Some("plane normal and offset must be finite".to_string())
+                    } else if normal.length_squared() == 0.0 {
+                        Some("plane normal is zero".to_string())
+                    } else {
+                        None
+                    }
+                }
+            };
+            if let Some(reason) = reason {
+                return Err(SettingsError::Clip { index, reason });
+            }
+        }
+        match self.light.kind {
+            LightKind::Headlight => {}
+            LightKind::Directional { dir } => {
+                if !dir.is_finite() || dir.length_squared() == 0.0 {
+                    return Err(SettingsError::Light(format!(
+                        "direction {dir} must be finite and non-zero"
+                    )));
+                }
+            }
+            LightKind::Point { pos } => {
+                if !pos.is_finite() {
+                    return Err(SettingsError::Light(format!(
+                        "position {pos} is not finite"
+                    )));
+                }
+            }
+        }
+        let l = &self.light;
+        if ![l.ambient, l.diffuse, l.specular, l.shininess]
+            .iter()
+            .all(|x| x.is_finite() && *x >= 0.0)
+        {
+            return Err(SettingsError::Light(
+                "ambient, diffuse, specular and shininess must be finite and >= 0".into(),
+            ));
+        }
+        if !unit_color(self.background) {
+            return Err(SettingsError::Background(self.background));
+        }
+        if self.scale == 0 {
+            return Err(SettingsError::Scale);
+        }
+        Ok(())
+    }
+
+    /// The isovalues passed to the scene (active surfaces only, in list order) and, for each,
+    /// the index of its surface in `surfaces`.
+    pub fn active_isovalues(&self) -> (Vec<f32>, Vec<usize>) {
+        self.surfaces
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_active())
+            .map(|(i, s)| (s.isovalue, i))
+            .unzip()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation_rejects_bad_fields() {
+        let mut s = RenderSettings {
+            surfaces: vec![Surface::new(0.5, [1.0, 0.5, 0.0])],
+            ..RenderSettings::default()
+        };
+        assert_eq!(s.validate(), Ok(()));
+        s.surfaces[0].opacity = 1.5;
+        assert!(matches!(
+            s.validate(),
+            Err(SettingsError::Opacity { index: 0, .. })
+        ));
+        s.surfaces[0].opacity = 1.0;
+        s.clips.push(ClipRegion::Plane {
+            normal: Vec3::ZERO,
+            offset: 0.0,
+        });
+        assert!(matches!(
+            s.validate(),
+            Err(SettingsError::Clip { index: 0, .. })
+        ));
+        s.clips.clear();
+        s.width = 0;
+        assert!(matches!(s.validate(), Err(SettingsError::ImageSize { .. })));
+    }
+
+    #[test]
+    fn only_active_surfaces_are_traced() {
+        let mut hidden = Surface::new(2.0, [0.0; 3]);
+        hidden.visible = false;
+        let mut clear = Surface::new(3.0, [0.0; 3]);
+        clear.opacity = 0.0;
+        let s = RenderSettings {
+            surfaces: vec![
+                Surface::new(1.0, [0.0; 3]),
+                hidden,
+                clear,
+                Surface::new(4.0, [0.0; 3]),
+            ],
+            ..RenderSettings::default()
+        };
+        assert_eq!(s.active_isovalues(), (vec![1.0, 4.0], vec![0, 3]));
+    }
+
+    #[test]
+    fn settings_json_round_trip() {
+        let s = RenderSettings {
+            clips: vec![
+                ClipRegion::Box {
+                    min: Vec3::ZERO,
+                    max: Vec3::ONE,
+                    keep: Keep::Outside,
+                },
+                ClipRegion::Plane {
+                    normal: Vec3::X,
+                    offset: 0.5,
+                },
+            ],
+            light: Light {
+                kind: LightKind::Directional { dir: Vec3::ONE },
+                ..Light::default()
+            },
+            ..RenderSettings::default()
+        };
+        let json = serde_json::to_string(&s).unwrap();
+        let back: RenderSettings = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, s);
+    }
+}
