@@ -27,7 +27,7 @@
 //! surface; a cell equal to the isovalue everywhere is hit at its entry; a corner equal to
 //! the isovalue is a candidate (ranges are closed).
 
-//ACC pub mod accuracy;
+pub mod accuracy;
 pub mod frame;
 pub mod methods;
 
