@@ -2,9 +2,26 @@
 //!
 //! - [`mesh`]: [`TetMesh`] (points, tets, named point fields), validation, and the crack-free
 //!   splitting of hexahedra, wedges and pyramids that readers use.
+//! - [`mt`]: the 16-case marching-tetrahedra table, isopolygon extraction with bit-identical
+//!   shared vertices, and the watertight ray–isopolygon test (§8.2), plus its `f64` twin.
+//! - [`bvh`]: the implicit min/max BVH with 4D bounds: BIH-style and binned-SAH builders,
+//!   parallel refit, `validate()` (§8.4.1, §8.5.2).
+//! - [`traverse`]: single-ray and 16×16 packet traversal with implicit isorange culling,
+//!   speculative first-active descent, interval frustum culling and first-active tracking
+//!   (§8.4.2), isopolygon frustum culling (§8.2.3).
+//! - [`scene`]: [`TetScene`], the [`crate::render::IsoScene`] the renderer draws, with
+//!   faceted or smooth normals (§8.3), scalar/position refits for time steps (§8.5) and the
+//!   brute-force twin.
 
+pub mod bvh;
 pub mod mesh;
+pub mod mt;
+pub mod scene;
+pub mod traverse;
 
+pub use bvh::{BvhBuilder, BvhInfo, BvhNode, BvhOptions, TetBvh};
 pub use mesh::{
     PointField, TetError, TetMesh, points_from_f64, split_hex, split_pyramid, split_wedge,
 };
+pub use scene::{TetNormals, TetScene};
+pub use traverse::{MAX_PACKET, RawHit};

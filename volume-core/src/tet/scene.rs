@@ -1,0 +1,493 @@
+//! [`TetScene`]: a tetrahedral mesh, one of its point fields and the implicit BVH, behind the
+//! renderer's [`IsoScene`] contract (thesis 004 ch. 8).
+//!
+//! - Hits report `t`, the isovalue index and a unit normal: by default the *faceted* normal
+//!   of the isopolygon (the data "as computed", §8.6); with [`TetNormals::Smooth`] the
+//!   normal interpolated by the per-tet matrix `M = N·V⁻¹` (§8.3), where `N` holds the
+//!   vertex gradients (volume-weighted averages of the incident tets' gradients) and `V`
+//!   the homogeneous vertex positions, so `M·(p, 1)` is the barycentric blend of the vertex
+//!   gradients at `p`. Normals point towards increasing value.
+//! - Time steps: [`TetScene::refit_scalars`] (values only: only the isoranges are refit)
+//!   and [`TetScene::refit_positions`] (§8.5.2, parallel refit); a per-step BVH is just one
+//!   `TetScene` per step (§8.5.1).
+//! - [`TetScene::brute_force_first_hit`] is the `f64` twin: every tet's isopolygon against
+//!   the ray, no acceleration structure.
+//!
+//! Degenerate input never panics: tets with repeated points or zero volume give empty or
+//! zero-area isopolygons, which the watertight test skips; inverted (negative-volume) tets
+//! work like any other; a NaN value at any vertex makes the tet void (no surface there).
+
+use glam::{DMat3, DMat4, DVec3, DVec4, Vec3, Vec4};
+use rayon::prelude::*;
+
+use super::bvh::{BvhInfo, BvhOptions, TetBvh};
+use super::mesh::{TetError, TetMesh};
+use super::mt;
+use super::traverse::{MAX_PACKET, RawHit};
+use crate::math::{Aabb, Ray};
+use crate::render::{Hit, IsoScene, Stats};
+
+/// Shading normals of tet isosurfaces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TetNormals {
+    /// The isopolygon's plane (default: data as computed).
+    #[default]
+    Faceted,
+    /// Interpolated vertex gradients via `M = N·V⁻¹` (thesis §8.3).
+    Smooth,
+}
+
+/// A tetrahedral mesh ready for isosurface ray tracing (module docs).
+#[derive(Debug, Clone)]
+pub struct TetScene {
+    /// Point position in `xyz`, the selected field's value in `w`.
+    pub(crate) verts: Vec<Vec4>,
+    /// Tets in leaf order.
+    pub(crate) tets: Vec<[u32; 4]>,
+    /// `order[leaf_position] = index in the input tet list`.
+    order: Vec<u32>,
+    pub(crate) bvh: TetBvh,
+    normals: TetNormals,
+    /// Rows of `M` per tet (leaf order), only for smooth normals.
+    normal_rows: Vec<[Vec4; 3]>,
+    packet: usize,
+    bounds: Aabb,
+}
+
+fn check_points(points: &[[f32; 3]]) -> Result<(), TetError> {
+    if points.len() > u32::MAX as usize {
+        return Err(TetError::TooManyPoints {
+            points: points.len(),
+        });
+    }
+    match points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        Some(point) => Err(TetError::NonFinitePoint {
+            point,
+            coords: points[point],
+        }),
+        None => Ok(()),
+    }
+}
+
+impl TetScene {
+    /// Builds the scene for the point field `field` of `mesh`.
+    pub fn new(mesh: &TetMesh, field: &str, options: BvhOptions) -> Result<Self, TetError> {
+        let values = &mesh.require_field(field)?.values;
+        Self::from_parts(&mesh.points, mesh.tets.clone(), values, options)
+    }
+
+    /// Builds the scene from raw parts (validated like [`TetMesh::new`]; at least one tet).
+    pub fn from_parts(
+        points: &[[f32; 3]],
+        tets: Vec<[u32; 4]>,
+        values: &[f32],
+        options: BvhOptions,
+    ) -> Result<Self, TetError> {
+        check_points(points)?;
+        if values.len() != points.len() {
+            return Err(TetError::StepLength {
+                what: "scalar values",
+                expected: points.len(),
+                actual: values.len(),
+            });
+        }
+        if tets.is_empty() {
+            return Err(TetError::Empty);
+        }
+        let n = points.len();
+        if let Some((cell, t)) = tets
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&i| i as usize >= n))
+        {
+            let index = t.iter().copied().find(|&i| i as usize >= n).unwrap_or(0);
+            return Err(TetError::IndexOutOfRange {
+                cell,
+                index: u64::from(index),
+                points: n,
+            });
+        }
+        let verts: Vec<Vec4> = points
+            .par_iter()
+            .zip(values)
+            .map(|(p, &v)| Vec4::new(p[0], p[1], p[2], v))
+            .collect();
+        let mut tets = tets;
+        let (bvh, order) = TetBvh::build(&verts, &mut tets, options);
+        let mut scene = Self {
+            verts,
+            tets,
+            order,
+            bvh,
+            normals: TetNormals::Faceted,
+            normal_rows: Vec::new(),
+            packet: MAX_PACKET,
+            bounds: Aabb::EMPTY,
+        };
+        scene.update_bounds();
+        Ok(scene)
+    }
+
+    fn update_bounds(&mut self) {
+        let r = self.bvh.root();
+        self.bounds = Aabb::new(r.lo.truncate(), r.hi.truncate());
+    }
+
+    /// Rebuilds the BVH from scratch (e.g. after large deformations), keeping the data.
+    pub fn rebuild(&mut self, options: BvhOptions) {
+        let mut tets = std::mem::take(&mut self.tets);
+        let (bvh, order) = TetBvh::build(&self.verts, &mut tets, options);
+        self.order = order.iter().map(|&i| self.order[i as usize]).collect();
+        self.tets = tets;
+        self.bvh = bvh;
+        self.update_bounds();
+        self.update_normals();
+    }
+
+    /// A new time step's scalars (same points): only the isoranges are refit (§8.5.2).
+    pub fn refit_scalars(&mut self, values: &[f32]) -> Result<(), TetError> {
+        if values.len() != self.verts.len() {
+            return Err(TetError::StepLength {
+                what: "scalar values",
+                expected: self.verts.len(),
+                actual: values.len(),
+            });
+        }
+        self.verts
+            .par_iter_mut()
+            .zip(values)
+            .for_each(|(p, &v)| p.w = v);
+        self.bvh.refit(&self.verts, &self.tets, true);
+        self.update_normals();
+        Ok(())
+    }
+
+    /// A new time step's point positions (same topology): full 4D refit (§8.5.2).
+    pub fn refit_positions(&mut self, points: &[[f32; 3]]) -> Result<(), TetError> {
+        if points.len() != self.verts.len() {
+            return Err(TetError::StepLength {
+                what: "point positions",
+                expected: self.verts.len(),
+                actual: points.len(),
+            });
+        }
+        check_points(points)?;
+        self.verts
+            .par_iter_mut()
+            .zip(points)
+            .for_each(|(p, q)| *p = Vec4::new(q[0], q[1], q[2], p.w));
+        self.bvh.refit(&self.verts, &self.tets, false);
+        self.update_bounds();
+        self.update_normals();
+        Ok(())
+    }
+
+    pub fn set_normals(&mut self, normals: TetNormals) {
+        self.normals = normals;
+        self.update_normals();
+    }
+
+    pub fn normals(&self) -> TetNormals {
+        self.normals
+    }
+
+    /// Rays traced together by `first_hit_packet` (clamped to `1..=256`; default 256 = 16×16).
+    pub fn set_packet_size(&mut self, rays: usize) {
+        self.packet = rays.clamp(1, MAX_PACKET);
+    }
+
+    pub fn packet_size(&self) -> usize {
+        self.packet
+    }
+
+    pub fn num_tets(&self) -> usize {
+        self.tets.len()
+    }
+
+    pub fn num_points(&self) -> usize {
+        self.verts.len()
+    }
+
+    /// `(min, max)` of the non-NaN values used by any tet, or `None` if all are void.
+    pub fn value_range(&self) -> Option<(f32, f32)> {
+        let r = self.bvh.root();
+        (r.lo.w <= r.hi.w).then_some((r.lo.w, r.hi.w))
+    }
+
+    pub fn bvh(&self) -> &TetBvh {
+        &self.bvh
+    }
+
+    pub fn bvh_info(&self) -> BvhInfo {
+        self.bvh.info()
+    }
+
+    /// The input index of the tet at leaf position `tet` (as in [`RawHit::tet`]).
+    pub fn input_tet(&self, tet: u32) -> u32 {
+        self.order[tet as usize]
+    }
+
+    /// Checks the BVH invariants against the current data.
+    pub fn validate(&self) -> Result<(), String> {
+        self.bvh.validate(&self.verts, &self.tets)?;
+        let mut seen = vec![false; self.order.len()];
+        for &o in &self.order {
+            if std::mem::replace(&mut seen[o as usize], true) {
+                return Err(format!("input tet {o} appears twice in the leaf order"));
+            }
+        }
+        Ok(())
+    }
+
+    fn update_normals(&mut self) {
+        if self.normals == TetNormals::Faceted {
+            self.normal_rows = Vec::new();
+            return;
+        }
+        // Vertex gradients: volume-weighted mean of the incident tets' gradients.
+        let grads: Vec<(DVec3, f64)> = self
+            .tets
+            .par_iter()
+            .map(|t| tet_gradient(&self.verts, t))
+            .collect();
+        let mut acc = vec![DVec3::ZERO; self.verts.len()];
+        for (t, (g, w)) in self.tets.iter().zip(&grads) {
+            for &i in t {
+                acc[i as usize] += *g * *w;
+            }
+        }
+        let vgrad: Vec<DVec3> = acc.into_iter().map(DVec3::normalize_or_zero).collect();
+        self.normal_rows = self
+            .tets
+            .par_iter()
+            .map(|t| {
+                let p = t.map(|i| self.verts[i as usize]);
+                let v = DMat4::from_cols(
+                    p[0].as_dvec4().truncate().extend(1.0),
+                    p[1].as_dvec4().truncate().extend(1.0),
+                    p[2].as_dvec4().truncate().extend(1.0),
+                    p[3].as_dvec4().truncate().extend(1.0),
+                );
+                let det = v.determinant();
+                if det.abs() <= 1e-300 || !det.is_finite() {
+                    return [Vec4::ZERO; 3];
+                }
+                let nm = DMat4::from_cols(
+                    vgrad[t[0] as usize].extend(0.0),
+                    vgrad[t[1] as usize].extend(0.0),
+                    vgrad[t[2] as usize].extend(0.0),
+                    vgrad[t[3] as usize].extend(0.0),
+                );
+                let m = nm * v.inverse();
+                [m.row(0), m.row(1), m.row(2)].map(|r: DVec4| r.as_vec4())
+            })
+            .collect();
+    }
+
+    /// Shading normal of a raw hit (module docs).
+    fn hit_normal(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Vec3 {
+        let ids = &self.tets[h.tet as usize];
+        let v = ids.map(|i| self.verts[i as usize]);
+        let c = iso[h.surface as usize];
+        let faceted = mt::extract(&v, ids, c)
+            .and_then(|p| p.normal())
+            .map_or(Vec3::Z, |n| {
+                // Orient towards increasing value: n is parallel to the gradient.
+                let above = v
+                    .iter()
+                    .find(|p| p.w > c)
+                    .map_or(Vec3::ZERO, |p| p.truncate());
+                let below = v
+                    .iter()
+                    .find(|p| p.w <= c)
+                    .map_or(Vec3::ZERO, |p| p.truncate());
+                if n.dot(above - below) < 0.0 { -n } else { n }
+            });
+        if self.normals == TetNormals::Smooth
+            && let Some(rows) = self.normal_rows.get(h.tet as usize)
+        {
+            let p = ray.at(h.t).extend(1.0);
+            let n = Vec3::new(rows[0].dot(p), rows[1].dot(p), rows[2].dot(p)).normalize_or_zero();
+            if n != Vec3::ZERO && n.is_finite() {
+                return n;
+            }
+        }
+        faceted
+    }
+
+    fn to_hit(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Hit {
+        Hit {
+            t: h.t,
+            surface: h.surface,
+            normal: self.hit_normal(ray, h, iso),
+        }
+    }
+
+    /// First hit without shading data (tests, statistics).
+    pub fn first_hit_raw<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        iso: &[f32],
+        stats: &mut S,
+    ) -> Option<RawHit> {
+        self.trace_single::<S, false>(ray, t_min, t_max, iso, stats)
+    }
+
+    /// Packet first hits without shading data, in packets of [`TetScene::packet_size`].
+    pub fn first_hit_packet_raw<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [Option<RawHit>],
+        stats: &mut S,
+    ) {
+        let p = self.packet;
+        for start in (0..rays.len()).step_by(p) {
+            let end = (start + p).min(rays.len());
+            if p == 1 {
+                out[start] = self.trace_single::<S, false>(
+                    &rays[start],
+                    t_min[start],
+                    t_max[start],
+                    iso,
+                    stats,
+                );
+            } else {
+                self.trace_packet(
+                    &rays[start..end],
+                    &t_min[start..end],
+                    &t_max[start..end],
+                    iso,
+                    &mut out[start..end],
+                    stats,
+                );
+            }
+        }
+    }
+
+    /// The `f64` brute-force twin: nearest `(t, isovalue index)` over every tet.
+    pub fn brute_force_first_hit(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        iso: &[f32],
+    ) -> Option<(f64, u32)> {
+        self.brute_force_first_hit_slack(ray, t_min, t_max, iso, 0.0)
+    }
+
+    /// [`Self::brute_force_first_hit`] with polygons grown (`slack > 0`) or shrunk (`< 0`)
+    /// by a barycentric margin: tests use it to tell rounding from real disagreements.
+    pub fn brute_force_first_hit_slack(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        iso: &[f32],
+        slack: f64,
+    ) -> Option<(f64, u32)> {
+        let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+        let (t0, t1) = (f64::from(t_min), f64::from(t_max));
+        let mut best: Option<(f64, u32)> = None;
+        for t in &self.tets {
+            let p = t.map(|i| self.verts[i as usize].truncate().as_dvec3());
+            let val = t.map(|i| f64::from(self.verts[i as usize].w));
+            for (s, &c) in iso.iter().enumerate() {
+                let Some((poly, count)) = mt::extract_f64(&p, &val, f64::from(c)) else {
+                    continue;
+                };
+                if let Some(th) = mt::intersect_f64(o, d, &poly, count, slack)
+                    && th >= t0
+                    && th <= t1
+                    && best.is_none_or(|(b, _)| th < b)
+                {
+                    best = Some((th, s as u32));
+                }
+            }
+        }
+        best
+    }
+
+    /// Input data of the scene: point positions.
+    pub fn points(&self) -> Vec<[f32; 3]> {
+        self.verts.iter().map(|v| v.truncate().to_array()).collect()
+    }
+}
+
+/// Gradient of the linear field over a tet and its |volume| (zero weight when degenerate
+/// or void).
+fn tet_gradient(verts: &[Vec4], t: &[u32; 4]) -> (DVec3, f64) {
+    let v = t.map(|i| verts[i as usize].as_dvec4());
+    if v.iter().any(|p| p.w.is_nan()) {
+        return (DVec3::ZERO, 0.0);
+    }
+    let e = [1, 2, 3].map(|k| (v[k] - v[0]).truncate());
+    let m = DMat3::from_cols(e[0], e[1], e[2]).transpose();
+    let det = m.determinant();
+    if det.abs() <= 1e-300 || !det.is_finite() {
+        return (DVec3::ZERO, 0.0);
+    }
+    let dw = DVec3::new(v[1].w - v[0].w, v[2].w - v[0].w, v[3].w - v[0].w);
+    (m.inverse() * dw, det.abs() / 6.0)
+}
+
+impl IsoScene for TetScene {
+    fn world_bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    fn first_hit<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> Option<Hit> {
+        self.trace_single::<S, false>(ray, t_min, t_max, isovalues, stats)
+            .map(|h| self.to_hit(ray, &h, isovalues))
+    }
+
+    fn occluded<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> bool {
+        self.trace_single::<S, true>(ray, t_min, t_max, isovalues, stats)
+            .is_some()
+    }
+
+    fn first_hit_packet<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isovalues: &[f32],
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        let mut raw = [None; MAX_PACKET];
+        for start in (0..rays.len()).step_by(MAX_PACKET) {
+            let end = (start + MAX_PACKET).min(rays.len());
+            let n = end - start;
+            self.first_hit_packet_raw(
+                &rays[start..end],
+                &t_min[start..end],
+                &t_max[start..end],
+                isovalues,
+                &mut raw[..n],
+                stats,
+            );
+            for k in 0..n {
+                out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isovalues));
+            }
+        }
+    }
+}
