@@ -177,9 +177,9 @@ pub fn extract(v: &[Vec4; 4], ids: &[u32; 4], c: f32) -> Option<IsoPoly> {
 #[derive(Debug, Clone, Copy)]
 pub struct RaySpace {
     pub origin: Vec3,
-    pub kx: usize,
-    pub ky: usize,
-    pub kz: usize,
+    pub kx: u8,
+    pub ky: u8,
+    pub kz: u8,
     pub sx: f32,
     pub sy: f32,
     pub sz: f32,
@@ -199,6 +199,7 @@ impl RaySpace {
         valid: false,
     };
 
+    #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         let a = dir.abs();
         let kz = if a.x >= a.y && a.x >= a.z {
@@ -216,9 +217,9 @@ impl RaySpace {
         let ky = (kx + 1) % 3;
         Self {
             origin,
-            kx,
-            ky,
-            kz,
+            kx: kx as u8,
+            ky: ky as u8,
+            kz: kz as u8,
             sx: dir[kx] / dz,
             sy: dir[ky] / dz,
             sz: 1.0 / dz,
@@ -230,7 +231,13 @@ impl RaySpace {
     #[inline]
     fn transform(&self, p: Vec3) -> [f32; 3] {
         let a = p - self.origin;
-        let (ax, ay, az) = (a[self.kx], a[self.ky], a[self.kz]);
+        // `& 3` on a 4-array: no bounds check, no branchy `Vec3` indexing.
+        let a = [a.x, a.y, a.z, 0.0];
+        let (ax, ay, az) = (
+            a[usize::from(self.kx & 3)],
+            a[usize::from(self.ky & 3)],
+            a[usize::from(self.kz & 3)],
+        );
         [ax - self.sx * az, ay - self.sy * az, self.sz * az]
     }
 }

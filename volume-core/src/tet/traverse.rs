@@ -133,6 +133,23 @@ impl Frustum {
         f
     }
 
+    /// The frustum of the union of the groups' rays.
+    fn union(groups: &[Frustum]) -> Self {
+        let mut f = groups[0];
+        for g in &groups[1..] {
+            f.omin = f.omin.min(g.omin);
+            f.omax = f.omax.max(g.omax);
+            f.imin = f.imin.min(g.imin);
+            f.imax = f.imax.max(g.imax);
+            f.t0 = f.t0.min(g.t0);
+            f.t1 = f.t1.max(g.t1);
+            for a in 0..3 {
+                f.axis[a] &= g.axis[a] && !(f.imin[a] < 0.0 && f.imax[a] > 0.0);
+            }
+        }
+        f
+    }
+
     /// True when no ray of the packet can meet the box `[lo, hi]` within its range.
     #[inline]
     fn misses(&self, lo: Vec3, hi: Vec3) -> bool {
@@ -283,14 +300,15 @@ impl TetScene {
             rs[i] = RaySpace::new(rays[i].origin, rays[i].dir);
             best[i] = t_max[i];
         }
-        let fr = Frustum::new(rays, &t_min[..len], &t_max[..len]);
         // Sub-frusta of 16 consecutive rays: the first-active search and the isopolygon
-        // culling skip whole groups that miss (a refinement of steps 3–5).
+        // culling skip whole groups that miss (a refinement of steps 3–5). The packet
+        // frustum is their union.
         let mut groups = [Frustum::NONE; MAX_GROUPS];
         for (g, start) in (0..len).step_by(GROUP).enumerate() {
             let end = (start + GROUP).min(len);
             groups[g] = Frustum::new(&rays[start..end], &t_min[start..end], &t_max[start..end]);
         }
+        let fr = Frustum::union(&groups[..len.div_ceil(GROUP)]);
         let groups = &groups[..len.div_ceil(GROUP)];
         let standard = len <= 4;
         let nodes = &self.bvh.nodes;
