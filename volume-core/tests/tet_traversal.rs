@@ -725,3 +725,69 @@ fn packets_of_16x16_need_far_fewer_box_tests_than_2x2() {
     assert!(ratio > 5.0, "ratio {ratio}");
     assert!(counts[1].polygon_extractions < counts[0].polygon_extractions);
 }
+
+#[test]
+fn time_steps_per_step_bvh_equals_refit() {
+    use volume_core::tet::{StepScheme, TetStep, TetSteps};
+    let mut rng = Rng(17);
+    let mesh = grid_mesh(6, 0.3, &mut rng, noisy_field);
+    // 4 steps: scalars move; steps 1 and 3 also move the points; step 2 is back at the reference.
+    let steps: Vec<TetStep> = (0..4)
+        .map(|k| {
+            let centre = Vec3::new(1.5 + 0.5 * k as f32, 2.5, 2.5);
+            let values = mesh
+                .points
+                .iter()
+                .map(|p| (Vec3::from(*p) - centre).length())
+                .collect();
+            let positions = (k % 2 == 1).then(|| {
+                mesh.points
+                    .iter()
+                    .map(|p| [p[0] + 0.2 * (p[1] * 0.7).sin(), p[1], p[2] * 1.05])
+                    .collect()
+            });
+            TetStep { positions, values }
+        })
+        .collect();
+    let opts = BvhOptions::default();
+    let mut per = TetSteps::new(
+        &mesh.points,
+        &mesh.tets,
+        steps.clone(),
+        StepScheme::PerStepBvh,
+        opts,
+    )
+    .unwrap();
+    let mut refit = TetSteps::new(
+        &mesh.points,
+        &mesh.tets,
+        steps.clone(),
+        StepScheme::Refit,
+        opts,
+    )
+    .unwrap();
+    let rays = random_rays(&mut rng, 200, 5.0, true);
+    let iso = [1.7f32];
+    for step in [1, 2, 3, 0, 3, 1, 2] {
+        per.set_step(step).unwrap();
+        refit.set_step(step).unwrap();
+        refit.scene().validate().unwrap();
+        assert_eq!(per.current_step(), step);
+        for r in &rays {
+            let a = per
+                .scene()
+                .first_hit_raw(r, 0.0, f32::INFINITY, &iso, &mut NoStats)
+                .map(|h| h.t);
+            let b = refit
+                .scene()
+                .first_hit_raw(r, 0.0, f32::INFINITY, &iso, &mut NoStats)
+                .map(|h| h.t);
+            assert!(same_t(a, b), "step {step}: {a:?} vs {b:?}");
+            agrees(refit.scene(), r, 0.0, f32::INFINITY, &iso, b).unwrap();
+        }
+    }
+    assert!(refit.set_step(4).is_err());
+    let mut bad = steps;
+    bad[2].values.pop();
+    assert!(TetSteps::new(&mesh.points, &mesh.tets, bad, StepScheme::Refit, opts).is_err());
+}

@@ -12,11 +12,13 @@
 //! - [`scene`]: [`TetScene`], the [`crate::render::IsoScene`] the renderer draws, with
 //!   faceted or smooth normals (§8.3), scalar/position refits for time steps (§8.5) and the
 //!   brute-force twin.
+//! - [`steps`]: [`TetSteps`], time-varying meshes with a per-step BVH or one refit BVH (§8.5).
 
 pub mod bvh;
 pub mod mesh;
 pub mod mt;
 pub mod scene;
+pub mod steps;
 pub mod traverse;
 
 pub use bvh::{BvhBuilder, BvhInfo, BvhNode, BvhOptions, TetBvh};
@@ -24,4 +26,5 @@ pub use mesh::{
     PointField, TetError, TetMesh, points_from_f64, split_hex, split_pyramid, split_wedge,
 };
 pub use scene::{TetNormals, TetScene};
+pub use steps::{StepScheme, TetStep, TetSteps};
 pub use traverse::{MAX_PACKET, RawHit};
