@@ -791,3 +791,43 @@ fn time_steps_per_step_bvh_equals_refit() {
     bad[2].values.pop();
     assert!(TetSteps::new(&mesh.points, &mesh.tets, bad, StepScheme::Refit, opts).is_err());
 }
+
+/// The shared renderer draws a `TetScene`: its depth buffer equals the `f64` brute force on
+/// the same primary rays, with packets and without, faceted and smooth.
+#[test]
+fn renderer_depth_matches_brute_force() {
+    use std::sync::atomic::AtomicBool;
+    use volume_core::render::{Camera, RenderSettings, Surface, render};
+    let mut rng = Rng(23);
+    let mesh = grid_mesh(8, 0.3, &mut rng, noisy_field);
+    let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+    let cam = Camera::orbit(&scene.world_bounds(), 35.0, 25.0, 40.0);
+    let (w, h) = (48u32, 40u32);
+    let iso = [2.6f32, 4.0];
+    let go = AtomicBool::new(false);
+    for (packets, normals) in [(true, TetNormals::Faceted), (false, TetNormals::Smooth)] {
+        scene.set_normals(normals);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            surfaces: iso
+                .iter()
+                .map(|&c| Surface::new(c, [0.8, 0.7, 0.6]))
+                .collect(),
+            packets,
+            ..RenderSettings::default()
+        };
+        let frame = render(&scene, &cam, &settings, &go).unwrap();
+        let mut hits = 0;
+        for j in 0..h {
+            for i in 0..w {
+                let ray = cam.primary_ray(i, j, w, h);
+                let depth = frame.depth[(j * w + i) as usize];
+                let got = depth.is_finite().then_some(depth);
+                hits += usize::from(got.is_some());
+                agrees(&scene, &ray, 0.0, f32::INFINITY, &iso, got).unwrap();
+            }
+        }
+        assert!(hits > (w * h / 10) as usize, "{hits}");
+    }
+}
