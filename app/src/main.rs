@@ -1,4 +1,5 @@
 //! The `isoscope` binary: parses the command line and hands over to the app library.
+//! With no subcommand it opens the viewer on the given files (or the embedded sample).
 
 use clap::Parser;
 
@@ -6,6 +7,24 @@ fn main() -> anyhow::Result<()> {
     let cli = isoscope::cli::Cli::parse();
     match cli.command {
         Some(command) => isoscope::cli::run(command),
-        None => anyhow::bail!("the viewer is not built yet; try `isoscope --help`"),
+        None => run_viewer(cli.files),
     }
+}
+
+fn run_viewer(files: Vec<std::path::PathBuf>) -> anyhow::Result<()> {
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("Isoscope")
+            .with_inner_size([1280.0, 800.0])
+            .with_drag_and_drop(true),
+        // Only the glow renderer is built (see the root Cargo.toml).
+        renderer: eframe::Renderer::Glow,
+        ..Default::default()
+    };
+    eframe::run_native(
+        "isoscope",
+        options,
+        Box::new(move |cc| Ok(Box::new(isoscope::viewer::ViewerApp::new(cc, files)))),
+    )
+    .map_err(|e| anyhow::anyhow!("cannot open the viewer window: {e}"))
 }

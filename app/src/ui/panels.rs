@@ -1,0 +1,409 @@
+//! Side-panel sections as `*_ui(ui, &mut state, ...)` functions.
+//!
+//! Panels edit the persisted [`ViewerState`] directly (a changed isovalue simply changes the
+//! next render request) and queue a [`Command`] for anything with side effects (opening
+//! files, adding or removing items, screenshots), which the viewer applies at the start of
+//! the next frame. Every input widget carries a label (accessibility, and kittest finds
+//! widgets by label).
+
+use std::path::PathBuf;
+
+use egui::{Color32, DragValue, Pos2, Rect, Sense, Slider, Stroke, Ui, Vec2};
+
+use super::backend::LoadedData;
+use super::state::{
+    ClipBoxState, ClipPlaneState, IntersectorChoice, KeepSide, RawLayoutState, SurfaceState,
+    ViewerState,
+};
+
+/// Actions with side effects, applied by the viewer at the start of a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Command {
+    OpenFiles(Vec<PathBuf>),
+    /// Opens a raw file with an explicit layout (from the raw dialog).
+    OpenRaw(PathBuf, RawLayoutState),
+    OpenDefault,
+    /// Shows file `index` of `state.files`.
+    ShowFile(usize),
+    PickFiles,
+    AddSurface,
+    RemoveSurface(usize),
+    AddClipBox,
+    RemoveClipBox(usize),
+    AddClipPlane,
+    RemoveClipPlane(usize),
+    ResetView,
+    AddBookmark,
+    SetStep(usize),
+    SaveSession(PathBuf),
+    LoadSession(PathBuf),
+    PickSaveSession,
+    PickLoadSession,
+    Screenshot {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+    },
+    CancelJobs,
+}
+
+/// UI preferences kept across runs (eframe storage), not part of a session.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct Prefs {
+    pub recent_files: Vec<PathBuf>,
+    pub log_histogram: bool,
+    pub screenshot_size: [u32; 2],
+    pub screenshot_path: PathBuf,
+}
+
+impl Default for Prefs {
+    fn default() -> Self {
+        Self {
+            recent_files: Vec::new(),
+            log_histogram: true,
+            screenshot_size: [1920, 1080],
+            screenshot_path: PathBuf::from("isoscope-screenshot.png"),
+        }
+    }
+}
+
+/// Most recent first, at most this many.
+pub const MAX_RECENT: usize = 10;
+
+impl Prefs {
+    pub fn remember(&mut self, path: &std::path::Path) {
+        self.recent_files.retain(|p| p != path);
+        self.recent_files.insert(0, path.to_path_buf());
+        self.recent_files.truncate(MAX_RECENT);
+    }
+}
+
+/// A labelled numeric field (kittest and screen readers find it by `label`).
+fn labelled_drag(ui: &mut Ui, label: &str, widget: DragValue<'_>) -> egui::Response {
+    ui.horizontal(|ui| {
+        let l = ui.label(label);
+        ui.add(widget).labelled_by(l.id)
+    })
+    .inner
+}
+
+fn color_button(ui: &mut Ui, label: &str, rgb: &mut [f32; 3]) -> egui::Response {
+    ui.horizontal(|ui| {
+        let l = ui.label(label);
+        ui.color_edit_button_rgb(rgb).labelled_by(l.id)
+    })
+    .inner
+}
+
+/// Data summary and the list of opened files.
+pub fn data_ui(ui: &mut Ui, state: &ViewerState, data: Option<&LoadedData>, active_file: usize, commands: &mut Vec<Command>) {
+    match data {
+        Some(d) => {
+            ui.label(egui::RichText::new(&d.name).strong());
+            ui.label(format!(
+                "{} × {} × {} {}",
+                d.dims[0], d.dims[1], d.dims[2], d.voxel_type
+            ));
+            ui.label(format!(
+                "values {:.6} … {:.6}",
+                d.value_range.0, d.value_range.1
+            ));
+            let e = d.bounds.extent();
+            ui.label(format!("extent {:.4} × {:.4} × {:.4}", e.x, e.y, e.z));
+            if d.step_count() > 1 {
+                ui.label(format!("{} time steps", d.step_count()));
+            }
+        }
+        None => {
+            ui.label("no data loaded");
+        }
+    }
+    if state.files.len() > 1 {
+        ui.separator();
+        for (i, f) in state.files.iter().enumerate() {
+            let name = f
+                .file_name()
+                .map_or_else(|| f.display().to_string(), |n| n.to_string_lossy().into_owned());
+            if ui.selectable_label(i == active_file, name).clicked() {
+                commands.push(Command::ShowFile(i));
+            }
+        }
+    }
+}
+
+/// The histogram of the data with a marker per isosurface; `log` compresses tall bins.
+pub fn histogram_ui(ui: &mut Ui, data: &LoadedData, surfaces: &[SurfaceState], log: bool) -> egui::Response {
+    let size = Vec2::new(ui.available_width(), 64.0);
+    let (rect, response) = ui.allocate_exact_size(size, Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, ui.visuals().extreme_bg_color);
+    let counts = &data.histogram.counts;
+    let height = |c: u64| if log { (c as f32 + 1.0).ln() } else { c as f32 };
+    let max = counts.iter().map(|&c| height(c)).fold(0.0_f32, f32::max).max(1e-6);
+    let bar_w = rect.width() / counts.len().max(1) as f32;
+    let bar_color = ui.visuals().widgets.inactive.fg_stroke.color.gamma_multiply(0.6);
+    for (i, &c) in counts.iter().enumerate() {
+        let h = height(c) / max * rect.height();
+        let x0 = rect.left() + i as f32 * bar_w;
+        painter.rect_filled(
+            Rect::from_min_max(Pos2::new(x0, rect.bottom() - h), Pos2::new(x0 + bar_w, rect.bottom())),
+            0.0,
+            bar_color,
+        );
+    }
+    let (lo, hi) = data.value_range;
+    for s in surfaces {
+        if hi > lo {
+            let x = rect.left() + ((s.isovalue - lo) / (hi - lo)) as f32 * rect.width();
+            let c = s.color.map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8);
+            let stroke = Stroke::new(if s.visible { 2.0 } else { 1.0 }, Color32::from_rgb(c[0], c[1], c[2]));
+            painter.vline(x, rect.y_range(), stroke);
+        }
+    }
+    response
+}
+
+/// Add/remove surfaces; value slider over the histogram, exact entry, color, opacity, visibility.
+pub fn isosurface_ui(
+    ui: &mut Ui,
+    state: &mut ViewerState,
+    data: Option<&LoadedData>,
+    log_histogram: &mut bool,
+    commands: &mut Vec<Command>,
+) {
+    let Some(data) = data else {
+        ui.label("load data to add isosurfaces");
+        return;
+    };
+    let (lo, hi) = data.value_range;
+    histogram_ui(ui, data, &state.surfaces, *log_histogram);
+    ui.checkbox(log_histogram, "Log-scale histogram");
+    // Leave room for the slider's label so the panel does not grow frame after frame.
+    let slider_width = (ui.available_width() - 150.0).max(60.0);
+    let mut remove = None;
+    for (i, s) in state.surfaces.iter_mut().enumerate() {
+        ui.push_id(("surface", i), |ui| {
+            ui.separator();
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut s.visible, format!("Surface {}", i + 1));
+                if ui.button("Remove").clicked() {
+                    remove = Some(i);
+                }
+            });
+            ui.spacing_mut().slider_width = slider_width;
+            ui.add(
+                Slider::new(&mut s.isovalue, lo..=hi)
+                    .text(format!("Isovalue {}", i + 1))
+                    .show_value(false),
+            );
+            ui.horizontal(|ui| {
+                let speed = ((hi - lo) / 1000.0).max(1e-9);
+                labelled_drag(
+                    ui,
+                    &format!("Value {}", i + 1),
+                    DragValue::new(&mut s.isovalue).speed(speed).max_decimals(9),
+                );
+                color_button(ui, "Color", &mut s.color);
+            });
+            ui.add(Slider::new(&mut s.opacity, 0.0..=1.0).text(format!("Opacity {}", i + 1)));
+        });
+    }
+    if let Some(i) = remove {
+        commands.push(Command::RemoveSurface(i));
+    }
+    ui.separator();
+    if ui.button("Add isosurface").clicked() {
+        commands.push(Command::AddSurface);
+    }
+}
+
+/// Clip boxes with per-axis range sliders and keep inside/outside; clip planes.
+pub fn clip_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>) {
+    const AXES: [&str; 3] = ["x", "y", "z"];
+    let mut remove_box = None;
+    for (i, b) in state.clip_boxes.iter_mut().enumerate() {
+        ui.push_id(("clip_box", i), |ui| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut b.enabled, format!("Clip box {}", i + 1));
+                if ui.button("Remove").clicked() {
+                    remove_box = Some(i);
+                }
+            });
+            ui.horizontal(|ui| {
+                ui.radio_value(&mut b.keep, KeepSide::Inside, "Keep inside");
+                ui.radio_value(&mut b.keep, KeepSide::Outside, "Keep outside");
+            });
+            for (a, name) in AXES.iter().enumerate() {
+                ui.add(Slider::new(&mut b.min[a], 0.0..=1.0).text(format!("Box {} {name} min", i + 1)));
+                ui.add(Slider::new(&mut b.max[a], 0.0..=1.0).text(format!("Box {} {name} max", i + 1)));
+                if b.min[a] > b.max[a] {
+                    b.max[a] = b.min[a];
+                }
+            }
+        });
+        ui.separator();
+    }
+    if let Some(i) = remove_box {
+        commands.push(Command::RemoveClipBox(i));
+    }
+    let mut remove_plane = None;
+    for (i, p) in state.clip_planes.iter_mut().enumerate() {
+        ui.push_id(("clip_plane", i), |ui| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut p.enabled, format!("Clip plane {}", i + 1));
+                if ui.button("Remove").clicked() {
+                    remove_plane = Some(i);
+                }
+            });
+            ui.horizontal(|ui| {
+                for (a, name) in AXES.iter().enumerate() {
+                    labelled_drag(ui, &format!("n{name}"), DragValue::new(&mut p.normal[a]).speed(0.01).range(-1.0..=1.0));
+                }
+            });
+            ui.add(Slider::new(&mut p.offset, -1.0..=1.0).text(format!("Plane {} offset", i + 1)));
+        });
+        ui.separator();
+    }
+    if let Some(i) = remove_plane {
+        commands.push(Command::RemoveClipPlane(i));
+    }
+    ui.horizontal(|ui| {
+        if ui.button("Add clip box").clicked() {
+            commands.push(Command::AddClipBox);
+        }
+        if ui.button("Add clip plane").clicked() {
+            commands.push(Command::AddClipPlane);
+        }
+    });
+}
+
+/// Intersector, transparency layers, shadows and light, background.
+pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState) {
+    let o = &mut state.render;
+    egui::ComboBox::from_label("Intersector")
+        .selected_text(o.intersector.cli_name())
+        .show_ui(ui, |ui| {
+            for c in IntersectorChoice::ALL {
+                ui.selectable_value(&mut o.intersector, c, c.cli_name())
+                    .on_hover_text(c.note());
+            }
+        });
+    ui.label(egui::RichText::new(o.intersector.note()).small().weak());
+    ui.add(Slider::new(&mut o.max_layers, 1..=16).text("Transparency layers"));
+    ui.checkbox(&mut o.shadows, "Shadows");
+    ui.add(Slider::new(&mut o.light_azimuth_deg, -180.0..=180.0).text("Light azimuth °"));
+    ui.add(Slider::new(&mut o.light_elevation_deg, -89.0..=89.0).text("Light elevation °"));
+    color_button(ui, "Background", &mut o.background);
+}
+
+/// Camera: field of view, projection, reset, bookmarks.
+pub fn camera_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>) {
+    ui.add(Slider::new(&mut state.camera.vfov_deg, 10.0..=90.0).text("Field of view °"));
+    ui.checkbox(&mut state.camera.orthographic, "Orthographic");
+    ui.horizontal(|ui| {
+        if ui.button("Reset view").clicked() {
+            commands.push(Command::ResetView);
+        }
+        if ui.button("Bookmark view").clicked() {
+            commands.push(Command::AddBookmark);
+        }
+    });
+    let mut remove = None;
+    for (i, b) in state.bookmarks.iter().enumerate() {
+        ui.horizontal(|ui| {
+            if ui.button(format!("View {}", i + 1)).clicked() {
+                state.camera = *b;
+            }
+            if ui.small_button("Delete").on_hover_text("Delete bookmark").clicked() {
+                remove = Some(i);
+            }
+        });
+    }
+    if let Some(i) = remove {
+        state.bookmarks.remove(i);
+    }
+    ui.label(egui::RichText::new("drag: orbit · right/middle or shift-drag: pan · wheel: zoom · arrows, +/−, R").small().weak());
+}
+
+/// Time slider, step buttons, play/pause, loop, fps, and the current step and time value.
+pub fn time_ui(ui: &mut Ui, state: &mut ViewerState, data: Option<&LoadedData>, commands: &mut Vec<Command>) {
+    let Some(data) = data else { return };
+    let count = data.step_count();
+    if count <= 1 {
+        return;
+    }
+    let t = &mut state.time;
+    ui.horizontal(|ui| {
+        if ui.button("First").on_hover_text("First step").clicked() {
+            commands.push(Command::SetStep(0));
+        }
+        if ui.button("Prev").on_hover_text("Previous step").clicked() {
+            commands.push(Command::SetStep(t.step.saturating_sub(1)));
+        }
+        let play_label = if t.playing { "Pause" } else { "Play" };
+        if ui.button(play_label).clicked() {
+            t.playing = !t.playing;
+        }
+        if ui.button("Next").on_hover_text("Next step").clicked() {
+            commands.push(Command::SetStep((t.step + 1).min(count - 1)));
+        }
+        if ui.button("Last").on_hover_text("Last step").clicked() {
+            commands.push(Command::SetStep(count - 1));
+        }
+        let mut step = t.step;
+        ui.spacing_mut().slider_width = (ui.available_width() - 420.0).max(100.0);
+        if ui.add(Slider::new(&mut step, 0..=count - 1).text("Time step")).changed() {
+            commands.push(Command::SetStep(step));
+        }
+        ui.label(format!("step {} / {}  t = {:.4}", t.step, count - 1, data.kind.time_value(t.step)));
+        ui.checkbox(&mut t.looping, "Loop");
+        ui.add(Slider::new(&mut t.fps, 0.5..=60.0).logarithmic(true).text("Playback fps"));
+    });
+}
+
+/// The raw-file dialog body: dims, type, endianness, header bytes, spacing.
+/// Returns true when the user confirmed.
+pub fn raw_layout_ui(ui: &mut Ui, layout: &mut RawLayoutState) -> bool {
+    ui.horizontal(|ui| {
+        for (a, name) in ["nx", "ny", "nz"].iter().enumerate() {
+            labelled_drag(ui, name, DragValue::new(&mut layout.dims[a]).range(1..=1 << 20));
+        }
+    });
+    egui::ComboBox::from_label("Voxel type")
+        .selected_text(layout.voxel_type.clone())
+        .show_ui(ui, |ui| {
+            for t in ["u8", "i8", "u16", "i16", "u32", "i32", "f32", "f64"] {
+                ui.selectable_value(&mut layout.voxel_type, t.to_string(), t);
+            }
+        });
+    ui.horizontal(|ui| {
+        ui.radio_value(&mut layout.little_endian, true, "Little endian");
+        ui.radio_value(&mut layout.little_endian, false, "Big endian");
+    });
+    labelled_drag(ui, "Header bytes", DragValue::new(&mut layout.header_bytes));
+    ui.horizontal(|ui| {
+        for (a, name) in ["sx", "sy", "sz"].iter().enumerate() {
+            labelled_drag(ui, name, DragValue::new(&mut layout.spacing[a]).speed(0.01).range(1e-9..=1e9));
+        }
+    });
+    ui.button("Open raw file").clicked()
+}
+
+/// Adds a surface at the middle of the value range (or after the last one).
+pub fn new_surface(state: &ViewerState, data: &LoadedData) -> SurfaceState {
+    let (lo, hi) = data.value_range;
+    let value = match state.surfaces.last() {
+        Some(last) => (last.isovalue + 0.25 * (hi - lo)).min(hi),
+        None => 0.5 * (lo + hi),
+    };
+    SurfaceState::new(value, state.surfaces.len())
+}
+
+pub fn new_clip_box() -> ClipBoxState {
+    ClipBoxState::default()
+}
+
+pub fn new_clip_plane() -> ClipPlaneState {
+    ClipPlaneState::default()
+}

@@ -1,0 +1,409 @@
+//! Persisted viewer state: what a session file holds (files, camera, isosurfaces, clips,
+//! render options, time step).
+//!
+//! Everything here is plain data with serde, independent of egui and of caches (loaded
+//! volumes, scenes, textures live in the viewer, not here), so a session round-trips through
+//! JSON exactly and tests can build states without a window.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+/// Version written into session files; bumped when a field changes meaning.
+pub const SESSION_VERSION: u32 = 1;
+
+/// The whole persisted state of the viewer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ViewerState {
+    pub version: u32,
+    /// Files shown (empty: the embedded default dataset).
+    pub files: Vec<PathBuf>,
+    /// Raw layout used for `files` that need one (raw files without a sidecar).
+    pub raw_layout: Option<RawLayoutState>,
+    pub camera: CameraState,
+    /// Saved camera views.
+    pub bookmarks: Vec<CameraState>,
+    pub surfaces: Vec<SurfaceState>,
+    pub clip_boxes: Vec<ClipBoxState>,
+    pub clip_planes: Vec<ClipPlaneState>,
+    pub render: RenderOptions,
+    pub time: TimeState,
+}
+
+impl Default for ViewerState {
+    fn default() -> Self {
+        Self {
+            version: SESSION_VERSION,
+            files: Vec::new(),
+            raw_layout: None,
+            camera: CameraState::default(),
+            bookmarks: Vec::new(),
+            surfaces: Vec::new(),
+            clip_boxes: Vec::new(),
+            clip_planes: Vec::new(),
+            render: RenderOptions::default(),
+            time: TimeState::default(),
+        }
+    }
+}
+
+impl ViewerState {
+    /// The session as pretty JSON.
+    pub fn to_json(&self) -> String {
+        // Plain data with string keys only: serialization cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Parses a session; unknown fields are ignored, missing ones take defaults.
+    pub fn from_json(text: &str) -> Result<Self, String> {
+        let state: Self =
+            serde_json::from_str(text).map_err(|e| format!("not a session file: {e}"))?;
+        if state.version > SESSION_VERSION {
+            return Err(format!(
+                "session version {} is newer than this viewer ({SESSION_VERSION})",
+                state.version
+            ));
+        }
+        Ok(state)
+    }
+
+    pub fn save(&self, path: &Path) -> Result<(), String> {
+        std::fs::write(path, self.to_json()).map_err(|e| format!("{}: {e}", path.display()))
+    }
+
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text =
+            std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::from_json(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
+
+/// Orbit camera around the centre of the data bounds (z up).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct CameraState {
+    pub azimuth_deg: f32,
+    /// Clamped to ±89° so that the up vector stays defined.
+    pub elevation_deg: f32,
+    /// Distance as a multiple of the distance at which the bounding sphere fits the view.
+    pub zoom: f32,
+    /// Target offset from the bounds centre along the view's right/up axes, in bounding radii.
+    pub pan: [f32; 2],
+    pub vfov_deg: f32,
+    pub orthographic: bool,
+}
+
+impl Default for CameraState {
+    fn default() -> Self {
+        Self {
+            azimuth_deg: 35.0,
+            elevation_deg: 25.0,
+            zoom: 1.0,
+            pan: [0.0, 0.0],
+            vfov_deg: 40.0,
+            orthographic: false,
+        }
+    }
+}
+
+impl CameraState {
+    pub const MIN_ZOOM: f32 = 0.05;
+    pub const MAX_ZOOM: f32 = 20.0;
+
+    /// Orbits by a drag of `(dx, dy)` degrees.
+    pub fn orbit(&mut self, d_azimuth_deg: f32, d_elevation_deg: f32) {
+        self.azimuth_deg = (self.azimuth_deg + d_azimuth_deg).rem_euclid(360.0);
+        self.elevation_deg = (self.elevation_deg + d_elevation_deg).clamp(-89.0, 89.0);
+    }
+
+    /// Multiplies the distance by `factor` (< 1 moves closer).
+    pub fn zoom_by(&mut self, factor: f32) {
+        if factor.is_finite() && factor > 0.0 {
+            self.zoom = (self.zoom * factor).clamp(Self::MIN_ZOOM, Self::MAX_ZOOM);
+        }
+    }
+
+    /// Moves the target by `(dx, dy)` bounding radii in the view plane.
+    pub fn pan_by(&mut self, dx: f32, dy: f32) {
+        self.pan[0] += dx;
+        self.pan[1] += dy;
+    }
+}
+
+/// One isosurface.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceState {
+    pub isovalue: f64,
+    /// Linear RGB in [0, 1].
+    pub color: [f32; 3],
+    pub opacity: f32,
+    pub visible: bool,
+}
+
+/// Colors given to new surfaces in turn.
+pub const SURFACE_PALETTE: [[f32; 3]; 6] = [
+    [0.90, 0.75, 0.55],
+    [0.35, 0.60, 0.95],
+    [0.90, 0.35, 0.30],
+    [0.45, 0.80, 0.45],
+    [0.85, 0.55, 0.90],
+    [0.95, 0.85, 0.30],
+];
+
+impl SurfaceState {
+    pub fn new(isovalue: f64, index: usize) -> Self {
+        Self {
+            isovalue,
+            color: SURFACE_PALETTE[index % SURFACE_PALETTE.len()],
+            opacity: 1.0,
+            visible: true,
+        }
+    }
+}
+
+/// Which side of a clip region stays visible.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum KeepSide {
+    #[default]
+    Inside,
+    Outside,
+}
+
+/// A clip box, per axis as fractions of the data bounds (0 = min face, 1 = max face), so a
+/// session stays meaningful when the spacing of the data changes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ClipBoxState {
+    pub enabled: bool,
+    pub keep: KeepSide,
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+}
+
+impl Default for ClipBoxState {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            keep: KeepSide::Inside,
+            min: [0.0; 3],
+            max: [0.5, 1.0, 1.0],
+        }
+    }
+}
+
+/// A clip plane through `centre + offset·radius·n`; the side the normal points to is removed.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ClipPlaneState {
+    pub enabled: bool,
+    pub normal: [f32; 3],
+    /// Signed distance from the bounds centre, in bounding radii.
+    pub offset: f32,
+}
+
+impl Default for ClipPlaneState {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            normal: [1.0, 0.0, 0.0],
+            offset: 0.0,
+        }
+    }
+}
+
+/// The intersectors of thesis seed 004 §7.2.2 plus the f64 reference.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+pub enum IntersectorChoice {
+    Linear,
+    Neubauer,
+    #[default]
+    Exact,
+    Schwarze,
+    Reference,
+}
+
+impl IntersectorChoice {
+    pub const ALL: [IntersectorChoice; 5] = [
+        Self::Linear,
+        Self::Neubauer,
+        Self::Exact,
+        Self::Schwarze,
+        Self::Reference,
+    ];
+
+    /// The name used on the command line (`--intersector`).
+    pub fn cli_name(self) -> &'static str {
+        match self {
+            Self::Linear => "linear",
+            Self::Neubauer => "neubauer",
+            Self::Exact => "exact",
+            Self::Schwarze => "schwarze",
+            Self::Reference => "reference",
+        }
+    }
+
+    /// One line on the speed/accuracy trade (docs/accuracy.md has the measurements).
+    pub fn note(self) -> &'static str {
+        match self {
+            Self::Linear => "fastest; interpolates between the cell entry and exit values, can miss thin features",
+            Self::Neubauer => "fast; a few secant steps (3), small errors, can miss double roots",
+            Self::Exact => "default; iterative root isolation of the cubic (thesis Listing 7.1), no misses",
+            Self::Schwarze => "analytic Cardano roots; exact in theory, loses precision in some cells",
+            Self::Reference => "f64 root isolation to full precision; slowest, for checking",
+        }
+    }
+}
+
+/// Render options that do not depend on the data.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RenderOptions {
+    pub intersector: IntersectorChoice,
+    /// Transparency layers (depth-peeling steps) for surfaces with opacity < 1.
+    pub max_layers: u32,
+    pub shadows: bool,
+    /// Light direction (towards the light) relative to the view: azimuth and elevation in
+    /// degrees; (0, 0) is a headlight.
+    pub light_azimuth_deg: f32,
+    pub light_elevation_deg: f32,
+    /// Linear RGB in [0, 1].
+    pub background: [f32; 3],
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        Self {
+            intersector: IntersectorChoice::Exact,
+            max_layers: 4,
+            shadows: false,
+            light_azimuth_deg: 0.0,
+            light_elevation_deg: 0.0,
+            background: [0.08, 0.08, 0.10],
+        }
+    }
+}
+
+/// Time-series playback.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TimeState {
+    pub step: usize,
+    /// Not restored from sessions as `true`: a restored session starts paused.
+    #[serde(skip)]
+    pub playing: bool,
+    pub looping: bool,
+    pub fps: f32,
+}
+
+impl Default for TimeState {
+    fn default() -> Self {
+        Self {
+            step: 0,
+            playing: false,
+            looping: true,
+            fps: 5.0,
+        }
+    }
+}
+
+impl TimeState {
+    /// The step after `step` for `count` steps, honoring `looping`; `None` at the end.
+    pub fn next_step(&self, count: usize) -> Option<usize> {
+        if count == 0 {
+            return None;
+        }
+        if self.step + 1 < count {
+            Some(self.step + 1)
+        } else if self.looping {
+            Some(0)
+        } else {
+            None
+        }
+    }
+}
+
+/// Raw-file layout as entered in the raw dialog (mirrors `formats::raw::RawLayout`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RawLayoutState {
+    pub dims: [usize; 3],
+    /// Voxel type name as on the command line: u8, i8, u16, i16, u32, i32, f32, f64.
+    pub voxel_type: String,
+    pub little_endian: bool,
+    pub header_bytes: u64,
+    pub spacing: [f64; 3],
+}
+
+impl Default for RawLayoutState {
+    fn default() -> Self {
+        Self {
+            dims: [64, 64, 64],
+            voxel_type: "u8".into(),
+            little_endian: true,
+            header_bytes: 0,
+            spacing: [1.0; 3],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn session_round_trips_through_json() {
+        let mut s = ViewerState {
+            files: vec![PathBuf::from("/data/ct.nrrd")],
+            ..ViewerState::default()
+        };
+        s.surfaces.push(SurfaceState::new(0.5, 0));
+        s.surfaces.push(SurfaceState {
+            opacity: 0.25,
+            visible: false,
+            ..SurfaceState::new(-3.0, 1)
+        });
+        s.clip_boxes.push(ClipBoxState {
+            keep: KeepSide::Outside,
+            ..ClipBoxState::default()
+        });
+        s.clip_planes.push(ClipPlaneState::default());
+        s.camera.orbit(100.0, 30.0);
+        s.render.intersector = IntersectorChoice::Schwarze;
+        s.time.step = 7;
+        let back = ViewerState::from_json(&s.to_json()).unwrap();
+        assert_eq!(back, s);
+    }
+
+    #[test]
+    fn session_defaults_fill_missing_fields_and_newer_versions_are_rejected() {
+        let s = ViewerState::from_json(r#"{"files":["a.nrrd"],"extra":1}"#).unwrap();
+        assert_eq!(s.files, vec![PathBuf::from("a.nrrd")]);
+        assert_eq!(s.camera, CameraState::default());
+        assert!(ViewerState::from_json(r#"{"version":99}"#).is_err());
+        assert!(ViewerState::from_json("[1,2").is_err());
+    }
+
+    #[test]
+    fn camera_limits_hold() {
+        let mut c = CameraState::default();
+        c.orbit(400.0, 200.0);
+        assert!((c.azimuth_deg - 75.0).abs() < 1e-4);
+        assert_eq!(c.elevation_deg, 89.0);
+        c.zoom_by(1e-9);
+        assert_eq!(c.zoom, CameraState::MIN_ZOOM);
+        c.zoom_by(f32::NAN);
+        assert_eq!(c.zoom, CameraState::MIN_ZOOM);
+    }
+
+    #[test]
+    fn time_steps_wrap_only_when_looping() {
+        let mut t = TimeState {
+            step: 4,
+            ..TimeState::default()
+        };
+        assert_eq!(t.next_step(5), Some(0));
+        t.looping = false;
+        assert_eq!(t.next_step(5), None);
+        t.step = 2;
+        assert_eq!(t.next_step(5), Some(3));
+        assert_eq!(t.next_step(0), None);
+    }
+}
