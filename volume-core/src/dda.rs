@@ -50,7 +50,7 @@ impl<'a, T: Voxel> DdaScene<'a, T> {
         intersector: C,
         stats: &mut S,
     ) -> Option<CellHit> {
-        if isos.is_empty() {
+        if isos.is_empty() || ray.dir == glam::Vec3::ZERO {
             return None;
         }
         let (t0, t1) = self.frame.clip(ray, t_min, t_max)?;

@@ -26,7 +26,7 @@ use glam::{DVec3, Vec3};
 use crate::dda::DdaScene;
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::{KdTree, KdTreeConfig};
+use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, packet_compatible};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
@@ -176,6 +176,9 @@ impl<T: Voxel> GridScene<T> {
         intersector: C,
         stats: &mut S,
     ) -> Option<CellHit> {
+        if ray.dir == Vec3::ZERO {
+            return None;
+        }
         let (t0, t1) = self.frame.clip(ray, t_min, t_max)?;
         self.tree.first_hit(
             &self.frame,
@@ -187,6 +190,73 @@ impl<T: Voxel> GridScene<T> {
             intersector,
             stats,
         )
+    }
+
+    /// Up to [`PACKET_WIDTH`] rays as one SIMD packet when their directions allow it
+    /// ([`crate::kdtree::packet_compatible`]), else one by one; same results either way.
+    pub fn packet_with<C: CellIntersector, S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        let n = rays.len().min(PACKET_WIDTH);
+        let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
+        let mut t0 = [f32::INFINITY; PACKET_WIDTH];
+        let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
+        for i in 0..n {
+            stats.ray();
+            local[i] = self.frame.to_local(&rays[i]);
+            if let Some((a, b)) = self.frame.clip(&local[i], t_min[i], t_max[i]) {
+                t0[i] = a;
+                t1[i] = b;
+            }
+        }
+        let mut cell_hits = [None; PACKET_WIDTH];
+        if packet_compatible(&local[..n]) {
+            self.tree.first_hit_packet(
+                &self.frame,
+                self.voxels.as_slice(),
+                &local[..n],
+                &t0[..n],
+                &t1[..n],
+                isos,
+                intersector,
+                stats,
+                &mut cell_hits[..n],
+            );
+        } else {
+            for i in 0..n {
+                if t0[i] <= t1[i] && local[i].dir != Vec3::ZERO {
+                    cell_hits[i] = self.tree.first_hit(
+                        &self.frame,
+                        self.voxels.as_slice(),
+                        &local[i],
+                        t0[i],
+                        t1[i],
+                        isos,
+                        intersector,
+                        stats,
+                    );
+                }
+            }
+        }
+        for i in 0..n {
+            out[i] = cell_hits[i].map(|h| {
+                make_hit(
+                    &self.frame,
+                    self.voxels.as_slice(),
+                    self.dims,
+                    &local[i],
+                    &rays[i],
+                    h,
+                )
+            });
+        }
     }
 
     /// [`IsoScene::first_hit`] with a static intersector `C` (no per-ray dispatch).
@@ -342,12 +412,9 @@ impl<T: Voxel> IsoScene for GridScene<T> {
     ) {
         crate::dispatch_intersector!(self.intersector, c => {
             let isos = IsoSet::new(isovalues);
-            for (i, ray) in rays.iter().enumerate() {
-                stats.ray();
-                let local = self.frame.to_local(ray);
-                out[i] = self
-                    .cell_hit_with(&local, t_min[i], t_max[i], &isos, c, stats)
-                    .map(|h| make_hit(&self.frame, self.voxels.as_slice(), self.dims, &local, ray, h));
+            for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                let base = start * PACKET_WIDTH;
+                self.packet_with(chunk, &t_min[base..], &t_max[base..], &isos, c, &mut out[base..], stats);
             }
         });
     }

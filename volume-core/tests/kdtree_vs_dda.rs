@@ -465,3 +465,89 @@ fn sphere_distance_field_hits_within_bound() {
     assert_eq!(counts.rays, 500);
     assert!(counts.leaves_visited > 0 && counts.nodes_visited > 0);
 }
+
+/// Packets (8 coherent rays from one eye, as a camera makes them) give exactly the
+/// single-ray hits, including groups the packet code must split (mixed direction signs).
+fn packets_equal_single<T: Voxel>(
+    grid: &Grid,
+    voxels: Vec<T>,
+    isos: &[f32],
+    rng: &mut Lcg,
+) -> usize {
+    let mut hits = 0;
+    for unstored in [0, 2] {
+        let scene = GridScene::new(
+            grid,
+            VoxelBuffer::from_vec(voxels.clone()),
+            Intersector::Exact,
+            KdTreeConfig {
+                unstored_levels: unstored,
+            },
+        )
+        .unwrap();
+        let b = scene.world_bounds();
+        for _ in 0..40 {
+            let c = (b.min + b.max) * 0.5;
+            let ext = (b.max - b.min).max(Vec3::ONE);
+            let eye = c + Vec3::new(
+                rng.range(-1.5, 1.5),
+                rng.range(-1.5, 1.5),
+                rng.range(-1.5, 1.5),
+            ) * ext;
+            let aim = c + Vec3::new(
+                rng.range(-0.5, 0.5),
+                rng.range(-0.5, 0.5),
+                rng.range(-0.5, 0.5),
+            ) * ext;
+            let spread = rng.range(0.001, 0.3);
+            let n = 1 + (rng.next() as usize) % 16;
+            let rays: Vec<Ray> = (0..n)
+                .map(|_| {
+                    let jitter = Vec3::new(
+                        rng.range(-1.0, 1.0),
+                        rng.range(-1.0, 1.0),
+                        rng.range(-1.0, 1.0),
+                    ) * spread;
+                    Ray::new(eye, ((aim - eye).normalize() + jitter).normalize())
+                })
+                .collect();
+            let t0: Vec<f32> = (0..n).map(|i| if i % 5 == 4 { 2.0 } else { 0.0 }).collect();
+            let t1: Vec<f32> = (0..n)
+                .map(|i| if i % 7 == 6 { 10.0 } else { f32::INFINITY })
+                .collect();
+            let mut out = vec![None; n];
+            scene.first_hit_packet(&rays, &t0, &t1, isos, &mut out, &mut NoStats);
+            for i in 0..n {
+                let single = scene.first_hit(&rays[i], t0[i], t1[i], isos, &mut NoStats);
+                assert_eq!(out[i], single, "ray {i} of {n}: {:?}", rays[i]);
+                hits += usize::from(single.is_some());
+            }
+        }
+    }
+    hits
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 32, ..ProptestConfig::default() })]
+
+    #[test]
+    fn packet_traversal_equals_single_rays(dims in dims_strategy(), seed in any::<u64>(), explicit in any::<bool>()) {
+        let mut rng = Lcg(seed);
+        let grid = grid_for(dims, &mut rng, explicit);
+        let n = dims.iter().product::<usize>();
+        let voxels: Vec<f32> = (0..n).map(|_| if rng.next() % 50 == 0 { f32::NAN } else { rng.range(-1.0, 1.0) }).collect();
+        let _hits = packets_equal_single(&grid, voxels, &[0.2, -0.5], &mut rng);
+    }
+}
+
+#[test]
+fn packet_comparison_sees_hits() {
+    let mut rng = Lcg(21);
+    let dims = [20, 17, 9];
+    let grid = grid_for(dims, &mut rng, false);
+    let voxels: Vec<u8> = (0..dims.iter().product::<usize>())
+        .map(|_| (rng.next() % 256) as u8)
+        .collect();
+    let hits = packets_equal_single(&grid, voxels, &[100.5, 200.0], &mut rng);
+    assert!(hits > 200, "{hits}");
+}

@@ -125,8 +125,16 @@ impl TraversalFrame {
             d = inv.transform_vector3(d);
         }
         let o = (o - self.origin_grid) * self.units_per_grid;
-        let d = d * self.units_per_grid;
-        LocalRay::new(o.as_vec3(), d.as_vec3())
+        let mut d = (d * self.units_per_grid).as_vec3();
+        // Components negligible against the largest become exactly 0, so every nonzero
+        // component has a finite reciprocal (traversal treats 0 as "in the plane").
+        let tiny = d.abs().max_element() * 1e-20;
+        for a in 0..3 {
+            if d[a].abs() <= tiny {
+                d[a] = 0.0;
+            }
+        }
+        LocalRay::new(o.as_vec3(), d)
     }
 
     /// The ray's overlap with the volume bounds, clipped to `[t_min, t_max]`.

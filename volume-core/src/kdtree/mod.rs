@@ -30,6 +30,10 @@
 //! visited, since the surface on a shared face may belong to either cell), with any number
 //! of isovalues in one pass.
 
+mod packet;
+
+pub use packet::{PACKET_WIDTH, packet_compatible};
+
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
@@ -65,6 +69,10 @@ struct Level {
     count: [usize; 3],
     range_offset: usize,
     split_offset: usize,
+    /// One-hot `axis` (`[1, 0, 0]` for x).
+    unit: [u32; 3],
+    /// Real children along `axis` (the next level's count).
+    child_count: u32,
 }
 
 /// The implicit min/max kd-tree (see the module docs).
@@ -107,6 +115,11 @@ impl<T: Voxel> KdTree<T> {
         let start = Instant::now();
         assert_eq!(voxels.len(), dims[0] * dims[1] * dims[2], "voxel count");
         let cells = dims.map(|d| d.saturating_sub(1));
+        // Node coordinates are u32 per axis (linear addresses are 64-bit).
+        assert!(
+            dims.iter().all(|&d| u32::try_from(d).is_ok()),
+            "more than 2^32 samples along one axis"
+        );
         let mut levels = Vec::new();
         if !cells.contains(&0) {
             let mut extent = cells.map(usize::next_power_of_two);
@@ -125,6 +138,8 @@ impl<T: Voxel> KdTree<T> {
                     count,
                     range_offset,
                     split_offset,
+                    unit: [0, 1, 2].map(|b| u32::from(b == axis)),
+                    child_count: 0,
                 });
                 if extent == [1, 1, 1] {
                     break;
@@ -133,6 +148,10 @@ impl<T: Voxel> KdTree<T> {
                 split_offset += count[axis];
                 extent[axis] /= 2;
             }
+        }
+        for l in 1..levels.len() {
+            let a = levels[l - 1].axis;
+            levels[l - 1].child_count = levels[l].count[a] as u32;
         }
         let depth = levels.len().saturating_sub(1);
         let stored = depth.saturating_sub(config.unstored_levels);
@@ -396,13 +415,14 @@ impl<T: Voxel> KdTree<T> {
                 }
                 stats.node();
                 let a = lv.axis;
-                let split = self.splits[lv.split_offset + node[a] as usize];
-                let child_count = self.levels[level + 1].count[a] as u32;
-                let mut left = node;
-                left[a] *= 2;
-                let mut right = left;
-                right[a] += 1;
-                let right_real = right[a] < child_count;
+                // One-hot axis arithmetic keeps the node in registers (indexing a `[u32; 3]`
+                // by `a` and reading it back whole stalls store forwarding).
+                let u = lv.unit;
+                let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
+                let split = self.splits[lv.split_offset + na as usize];
+                let left = [node[0] << u[0], node[1] << u[1], node[2] << u[2]];
+                let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
+                let right_real = 2 * na + 1 < lv.child_count;
                 level += 1;
                 let o = ray.origin[a];
                 let d = ray.dir[a];
