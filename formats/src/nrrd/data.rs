@@ -126,7 +126,7 @@ impl DataPlan {
         } else {
             let mut reader = BufReader::new(&file);
             let after_lines = self.skip_lines(path, &mut reader, file_len)?;
-            after_lines + self.byte_skip as u64
+            after_lines.saturating_add(self.byte_skip as u64)
         };
         let end = data_start.checked_add(need).unwrap_or(u64::MAX);
         if end > file_len {

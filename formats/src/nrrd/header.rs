@@ -18,6 +18,9 @@ use crate::raw::Endian;
 /// Longest header accepted (comments, key/values and `LIST` file names included).
 pub const MAX_HEADER_BYTES: usize = 16 << 20;
 
+/// Most data files a detached header may name (a printf pattern could name billions).
+pub const MAX_DATA_FILES: u64 = 1 << 20;
+
 /// Largest `dimension` accepted (Teem's `NRRD_DIM_MAX`).
 pub const MAX_DIMENSION: usize = 16;
 
@@ -847,7 +850,8 @@ fn parse_data_file(
             int(tokens[2], "max")?,
             int(tokens[3], "step")?,
         );
-        if step == 0 || (max - min).signum() * step.signum() < 0 {
+        if step == 0 || (i128::from(max) - i128::from(min)).signum() * i128::from(step.signum()) < 0
+        {
             return Err(cx.bad(
                 line,
                 "data file",
@@ -855,7 +859,15 @@ fn parse_data_file(
             ));
         }
         let subdim = parse_subdim(tokens.get(4))?;
-        let count = ((max as i128 - min as i128) / step as i128 + 1) as u64;
+        let count = (i128::from(max) - i128::from(min)) / i128::from(step) + 1;
+        if count > i128::from(MAX_DATA_FILES) {
+            return Err(cx.bad(
+                line,
+                "data file",
+                format!("pattern names {count} files; at most {MAX_DATA_FILES} are supported"),
+            ));
+        }
+        let count = count as u64;
         if count != files_needed(subdim) {
             return Err(cx.bad(
                 line,
@@ -999,7 +1011,10 @@ pub fn data_file_paths(header: &NrrdHeader, header_path: &Path) -> Vec<PathBuf> 
             let mut n = *min;
             while (*step > 0 && n <= *max) || (*step < 0 && n >= *max) {
                 out.push(resolve(&format_printf(format, n)));
-                n += step;
+                match n.checked_add(*step) {
+                    Some(next) => n = next,
+                    None => break,
+                }
             }
             out
         }
