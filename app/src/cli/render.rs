@@ -1,9 +1,586 @@
-//! `isoscope render` (being written).
+//! `isoscope render FILE [--iso V[:#RRGGBB[:OPACITY]]]... [--camera cam.json | --orbit AZ,EL]
+//! [--size WxH] [--intersector NAME] [--shadows] [--light-dir x,y,z] [--clip-box ...]...
+//! [--clip-plane ...]... [--layers N] [--background #RRGGBB] [--step N] -o out.png
+//! [--depth-out depth.npy]`
+//!
+//! Opens a volume (`formats::open`), builds the implicit min/max kd-tree
+//! ([`volume_core::grid_scene::AnyGridScene`]), renders one frame with
+//! [`volume_core::render::render`] and writes a PNG and optionally the first-hit depth as
+//! `.npy` (float32, shape (H, W), row 0 at the top, `inf` on miss; see docs/cli.md).
+//!
+//! The parsers and the camera/volume helpers here are shared with `isoscope bench`.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use anyhow::{Context as _, bail};
+use glam::Vec3;
+use volume_core::RectilinearVolume;
+use volume_core::grid_scene::{AnyGridScene, SceneVisitor};
+use volume_core::intersect::Intersector;
+use volume_core::math::Aabb;
+use volume_core::render::{
+    Camera, ClipRegion, Frame, IsoScene, Keep, Light, LightKind, RenderSettings, Surface, render,
+};
+
+use super::npy;
+use super::open_args::OpenArgs;
+use crate::progress::Progress;
+
+/// Colours given to `--iso` values without one, in order.
+pub const PALETTE: [[f32; 3]; 6] = [
+    [0.85, 0.78, 0.62],
+    [0.35, 0.6, 0.9],
+    [0.9, 0.4, 0.3],
+    [0.45, 0.8, 0.45],
+    [0.8, 0.5, 0.85],
+    [0.95, 0.8, 0.3],
+];
+
+/// One `--iso` argument: `V[:#RRGGBB[:OPACITY]]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IsoSpec {
+    pub value: f32,
+    pub color: Option<[f32; 3]>,
+    pub opacity: f32,
+}
+
+/// How the camera is chosen (shared by `render` and `bench`).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct ViewArgs {
+    /// Camera JSON: {"eye":[x,y,z],"target":[x,y,z],"up":[x,y,z],"vfov_deg":40,
+    /// "projection":"pinhole"|"orthographic","ortho_height":H} in world units.
+    #[arg(long, value_name = "cam.json", conflicts_with = "orbit")]
+    pub camera: Option<PathBuf>,
+    /// Orbit camera around the volume centre, framing its bounds: azimuth,elevation in
+    /// degrees, +z up (default 30,20).
+    #[arg(long, value_name = "AZ,EL", value_parser = parse_orbit, allow_hyphen_values = true)]
+    pub orbit: Option<[f32; 2]>,
+    /// Vertical field of view of the orbit camera, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = 40.0)]
+    pub vfov: f32,
+}
+
+impl ViewArgs {
+    /// The camera: from the JSON file, or an orbit framing `bounds`; validated.
+    pub fn camera(&self, bounds: &Aabb) -> anyhow::Result<Camera> {
+        let camera = if let Some(path) = &self.camera {
+            load_camera(path)?
+        } else {
+            if !(self.vfov > 0.0 && self.vfov < 180.0) {
+                bail!("--vfov {} must be between 0 and 180 degrees", self.vfov);
+            }
+            let [az, el] = self.orbit.unwrap_or([30.0, 20.0]);
+            Camera::orbit(bounds, az, el, self.vfov)
+        };
+        camera.validate()?;
+        Ok(camera)
+    }
+}
+
+/// Reads and validates a camera JSON file (unknown fields are ignored).
+pub fn load_camera(path: &Path) -> anyhow::Result<Camera> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read camera file {}", path.display()))?;
+    let camera: Camera = serde_json::from_str(&text)
+        .with_context(|| format!("camera file {}: not a valid camera", path.display()))?;
+    camera
+        .validate()
+        .with_context(|| format!("camera file {}", path.display()))?;
+    Ok(camera)
+}
 
 /// Arguments of `isoscope render`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), or a
+    /// time series pattern such as vol_%03d.nrrd.
+    pub file: PathBuf,
+    /// Isosurface: value, optional colour and opacity, e.g. 0.5, 500:#e0d0b0, -300:#ff8060:0.4.
+    /// Repeat for several surfaces. Default: one surface at the middle of the value range.
+    #[arg(long = "iso", value_name = "V[:#RRGGBB[:OPACITY]]", value_parser = parse_iso, allow_hyphen_values = true)]
+    pub iso: Vec<IsoSpec>,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Image size in pixels.
+    #[arg(long, value_name = "WxH", value_parser = parse_size, default_value = "800x600")]
+    pub size: [u32; 2],
+    /// Cell intersector: exact (default), linear, neubauer[:N], schwarze, reference.
+    #[arg(long, value_name = "NAME", default_value = "exact", value_parser = parse_intersector)]
+    pub intersector: Intersector,
+    /// Cast shadow rays towards the light (default light: above left of the camera).
+    #[arg(long)]
+    pub shadows: bool,
+    /// Directional light: the direction from the surface towards the light, world units.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub light_dir: Option<Vec3>,
+    /// Clip box by two corners; keeps its inside (default) or outside. Repeatable.
+    #[arg(long = "clip-box", value_name = "X0,Y0,Z0,X1,Y1,Z1[:inside|outside]", value_parser = parse_clip_box, allow_hyphen_values = true)]
+    pub clip_boxes: Vec<ClipRegion>,
+    /// Clip plane keeping the points with nx·x + ny·y + nz·z <= d. Repeatable.
+    #[arg(long = "clip-plane", value_name = "NX,NY,NZ,D", value_parser = parse_clip_plane, allow_hyphen_values = true)]
+    pub clip_planes: Vec<ClipRegion>,
+    /// Most transparent layers composited per pixel.
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub layers: u32,
+    /// Background colour.
+    #[arg(long, value_name = "#RRGGBB", value_parser = parse_color)]
+    pub background: Option<[f32; 3]>,
+    /// Time step of a series (default 0).
+    #[arg(long, value_name = "N")]
+    pub step: Option<usize>,
+    /// Output PNG.
+    #[arg(short, long, value_name = "out.png")]
+    pub output: PathBuf,
+    /// Also write the first-hit distance per pixel: float32 .npy, shape (H, W), row 0 at the
+    /// top, inf where the ray hits nothing.
+    #[arg(long, value_name = "depth.npy")]
+    pub depth_out: Option<PathBuf>,
+    /// Print traversal statistics (nodes, leaves and intersections per ray).
+    #[arg(long)]
+    pub stats: bool,
+    #[command(flatten)]
+    pub open: OpenArgs,
+}
 
-pub fn run(_args: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("isoscope render is not available yet")
+/// Opens `file` and returns step `step` (0 when `None`) of it.
+pub fn load_volume(
+    file: &Path,
+    open: &OpenArgs,
+    step: Option<usize>,
+) -> anyhow::Result<RectilinearVolume> {
+    let options = open.open_options()?;
+    let dataset = {
+        let _spinner = Progress::spinner(format!("opening {}", file.display()));
+        formats::open(file, &options)?
+    };
+    match dataset {
+        formats::Dataset::Volume(v) => {
+            if let Some(s) = step.filter(|&s| s != 0) {
+                bail!(
+                    "--step {s}: {} is a single volume, not a time series",
+                    file.display()
+                );
+            }
+            Ok(v)
+        }
+        formats::Dataset::Series(series) => {
+            let s = step.unwrap_or(0);
+            if s >= series.step_count() {
+                bail!(
+                    "--step {s}: {} has {} time steps (0..{})",
+                    file.display(),
+                    series.step_count(),
+                    series.step_count() - 1
+                );
+            }
+            series
+                .step(s)
+                .with_context(|| format!("loading time step {s} of {}", file.display()))
+        }
+    }
+}
+
+/// The middle of the finite value range (the default isovalue).
+pub fn middle_isovalue(volume: &RectilinearVolume) -> anyhow::Result<f32> {
+    let stats = volume.value_stats();
+    let Some((lo, hi)) = stats.finite_range else {
+        bail!("the volume has no finite values, so there is no isosurface to show");
+    };
+    Ok((0.5 * (lo + hi)) as f32)
+}
+
+/// Surfaces from `--iso` arguments (palette colours where none is given), or the default.
+pub fn surfaces_from(
+    specs: &[IsoSpec],
+    volume: &RectilinearVolume,
+) -> anyhow::Result<Vec<Surface>> {
+    if specs.is_empty() {
+        return Ok(vec![Surface::new(middle_isovalue(volume)?, PALETTE[0])]);
+    }
+    Ok(specs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Surface {
+            isovalue: s.value,
+            color: s.color.unwrap_or(PALETTE[i % PALETTE.len()]),
+            opacity: s.opacity,
+            visible: true,
+        })
+        .collect())
+}
+
+/// A key light for `--shadows` without `--light-dir`: above, left and behind the camera.
+pub fn default_key_light(camera: &Camera) -> Vec3 {
+    let (right, up, forward) = camera.basis();
+    (-forward + up * 0.8 - right * 0.5).normalize()
+}
+
+/// Renders any voxel type with fully monomorphized traversal.
+struct RenderVisitor<'a> {
+    camera: &'a Camera,
+    settings: &'a RenderSettings,
+    cancel: &'a AtomicBool,
+}
+
+impl SceneVisitor for RenderVisitor<'_> {
+    type Output = Option<Frame>;
+    fn visit<S: IsoScene>(self, scene: &S) -> Option<Frame> {
+        render(scene, self.camera, self.settings, self.cancel)
+    }
+}
+
+/// Renders the kd-tree scene (`dda == false`) or its brute-force DDA twin (`dda == true`).
+/// `None` if cancelled.
+pub fn render_grid(
+    scene: &AnyGridScene,
+    dda: bool,
+    camera: &Camera,
+    settings: &RenderSettings,
+    cancel: &AtomicBool,
+) -> Option<Frame> {
+    let v = RenderVisitor {
+        camera,
+        settings,
+        cancel,
+    };
+    if dda {
+        scene.visit_dda(v)
+    } else {
+        scene.visit(v)
+    }
+}
+
+/// Errors if `output` names the same existing file as `input` (never overwrite the data).
+pub fn refuse_overwriting_input(input: &Path, output: &Path) -> anyhow::Result<()> {
+    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize())
+        && a == b
+    {
+        bail!(
+            "output {} is the input file; choose another name",
+            output.display()
+        );
+    }
+    Ok(())
+}
+
+/// Writes `frame` as an RGBA PNG.
+pub fn save_png(frame: &Frame, path: &Path) -> anyhow::Result<()> {
+    image::save_buffer_with_format(
+        path,
+        &frame.rgba8,
+        frame.width,
+        frame.height,
+        image::ExtendedColorType::Rgba8,
+        image::ImageFormat::Png,
+    )
+    .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Builds the settings of `isoscope render` (validated).
+pub fn settings_from(
+    args: &Args,
+    camera: &Camera,
+    surfaces: Vec<Surface>,
+) -> anyhow::Result<RenderSettings> {
+    let mut light = Light::default();
+    if let Some(dir) = args.light_dir {
+        light.kind = LightKind::Directional { dir };
+    } else if args.shadows {
+        light.kind = LightKind::Directional {
+            dir: default_key_light(camera),
+        };
+    }
+    let mut clips = args.clip_boxes.clone();
+    clips.extend_from_slice(&args.clip_planes);
+    let defaults = RenderSettings::default();
+    let settings = RenderSettings {
+        width: args.size[0],
+        height: args.size[1],
+        surfaces,
+        clips,
+        max_layers: args.layers,
+        shadows: args.shadows,
+        light,
+        background: args.background.unwrap_or(defaults.background),
+        collect_stats: args.stats,
+        ..defaults
+    };
+    if args.layers == 0 {
+        bail!("--layers must be at least 1");
+    }
+    settings.validate()?;
+    Ok(settings)
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    refuse_overwriting_input(&args.file, &args.output)?;
+    if let Some(d) = &args.depth_out {
+        refuse_overwriting_input(&args.file, d)?;
+    }
+    let volume = load_volume(&args.file, &args.open, args.step)?;
+    let surfaces = surfaces_from(&args.iso, &volume)?;
+    let scene = {
+        let _spinner = Progress::spinner("building the kd-tree");
+        AnyGridScene::new(&volume, args.intersector)
+    };
+    let camera = args.view.camera(&scene.world_bounds())?;
+    let settings = settings_from(args, &camera, surfaces)?;
+    let frame = {
+        let _spinner = Progress::spinner("rendering");
+        render_grid(&scene, false, &camera, &settings, &AtomicBool::new(false))
+            .context("rendering was cancelled")?
+    };
+    save_png(&frame, &args.output)?;
+    if let Some(path) = &args.depth_out {
+        npy::save_f32_2d(
+            path,
+            frame.height as usize,
+            frame.width as usize,
+            &frame.depth,
+        )?;
+    }
+    let secs = frame.elapsed.as_secs_f64();
+    eprintln!(
+        "{}x{} {} in {:.1} ms ({:.2} Mrays/s primary; kd-tree built in {:.1} ms, {:.2}x data) -> {}",
+        frame.width,
+        frame.height,
+        args.intersector,
+        secs * 1e3,
+        frame.rays.primary as f64 / secs.max(1e-9) / 1e6,
+        scene.build_time().as_secs_f64() * 1e3,
+        scene.memory_ratio(),
+        args.output.display()
+    );
+    if args.stats {
+        let c = frame.counts;
+        let rays = c.rays.max(1) as f64;
+        eprintln!(
+            "rays traced {} (primary {}, transparency {}, shadow {}); per ray: {:.1} nodes, {:.1} leaves, {:.2} intersections",
+            c.rays,
+            frame.rays.primary,
+            frame.rays.transparency,
+            frame.rays.shadow,
+            c.nodes_visited as f64 / rays,
+            c.leaves_visited as f64 / rays,
+            c.intersection_tests as f64 / rays
+        );
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Parsers (clap value parsers; errors say what was expected).
+
+fn numbers(s: &str, what: &str, n: usize) -> Result<Vec<f32>, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<f32>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("`{s}`: `{p}` is not a finite number"))
+        })
+        .collect::<Result<_, _>>()?;
+    if v.len() != n {
+        return Err(format!("`{s}`: expected {what} ({n} numbers)"));
+    }
+    Ok(v)
+}
+
+/// `WxH`, each between 1 and [`volume_core::render::MAX_IMAGE_SIDE`].
+pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}`: expected WxH, e.g. 1024x768"))?;
+    let side = |p: &str| {
+        p.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|v| (1..=volume_core::render::MAX_IMAGE_SIDE).contains(v))
+            .ok_or_else(|| {
+                format!(
+                    "`{s}`: `{p}` is not a size between 1 and {}",
+                    volume_core::render::MAX_IMAGE_SIDE
+                )
+            })
+    };
+    Ok([side(w)?, side(h)?])
+}
+
+/// `AZ,EL` in degrees.
+pub fn parse_orbit(s: &str) -> Result<[f32; 2], String> {
+    let v = numbers(s, "AZ,EL in degrees", 2)?;
+    Ok([v[0], v[1]])
+}
+
+/// `x,y,z`.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v = numbers(s, "x,y,z", 3)?;
+    Ok(Vec3::new(v[0], v[1], v[2]))
+}
+
+/// `#RRGGBB` (the `#` is optional) to `[0, 1]` channels.
+pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
+    let hex = s.strip_prefix('#').unwrap_or(s);
+    if hex.len() != 6 || !hex.chars().all(|c| c.is_ascii_hexdigit()) {
+        return Err(format!("`{s}`: expected a colour #RRGGBB, e.g. #ff8000"));
+    }
+    let ch = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).map(|v| f32::from(v) / 255.0);
+    Ok([
+        ch(0).map_err(|e| e.to_string())?,
+        ch(2).map_err(|e| e.to_string())?,
+        ch(4).map_err(|e| e.to_string())?,
+    ])
+}
+
+/// `V[:#RRGGBB[:OPACITY]]`.
+pub fn parse_iso(s: &str) -> Result<IsoSpec, String> {
+    let mut parts = s.split(':');
+    let v = parts.next().unwrap_or_default();
+    let value = v
+        .trim()
+        .parse::<f32>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| format!("`{s}`: isovalue `{v}` is not a finite number"))?;
+    let color = match parts.next() {
+        None | Some("") => None,
+        Some(c) => Some(parse_color(c)?),
+    };
+    let opacity = match parts.next() {
+        None => 1.0,
+        Some(o) => o
+            .trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|x| (0.0..=1.0).contains(x))
+            .ok_or_else(|| format!("`{s}`: opacity `{o}` is not a number in [0, 1]"))?,
+    };
+    if parts.next().is_some() {
+        return Err(format!("`{s}`: expected V[:#RRGGBB[:OPACITY]]"));
+    }
+    Ok(IsoSpec {
+        value,
+        color,
+        opacity,
+    })
+}
+
+/// `x0,y0,z0,x1,y1,z1[:inside|outside]` (corners in any order).
+pub fn parse_clip_box(s: &str) -> Result<ClipRegion, String> {
+    let (coords, keep) = match s.split_once(':') {
+        None => (s, Keep::Inside),
+        Some((c, k)) => (
+            c,
+            match k.trim().to_ascii_lowercase().as_str() {
+                "inside" | "in" => Keep::Inside,
+                "outside" | "out" => Keep::Outside,
+                other => return Err(format!("`{s}`: `{other}` is not inside or outside")),
+            },
+        ),
+    };
+    let v = numbers(coords, "x0,y0,z0,x1,y1,z1", 6)?;
+    let (a, b) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]));
+    Ok(ClipRegion::Box {
+        min: a.min(b),
+        max: a.max(b),
+        keep,
+    })
+}
+
+/// `nx,ny,nz,d`: keeps `n·x <= d`.
+pub fn parse_clip_plane(s: &str) -> Result<ClipRegion, String> {
+    let v = numbers(s, "nx,ny,nz,d", 4)?;
+    let normal = Vec3::new(v[0], v[1], v[2]);
+    if normal == Vec3::ZERO {
+        return Err(format!("`{s}`: the plane normal is zero"));
+    }
+    Ok(ClipRegion::Plane {
+        normal,
+        offset: v[3],
+    })
+}
+
+/// An intersector name (see `Intersector::from_str`).
+pub fn parse_intersector(s: &str) -> Result<Intersector, String> {
+    s.parse::<Intersector>().map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn iso_specs_parse_with_optional_colour_and_opacity() {
+        assert_eq!(
+            parse_iso("0.5").unwrap(),
+            IsoSpec {
+                value: 0.5,
+                color: None,
+                opacity: 1.0
+            }
+        );
+        let s = parse_iso("-300:#FF8000:0.25").unwrap();
+        assert_eq!(s.value, -300.0);
+        assert_eq!(s.color, Some([1.0, 128.0 / 255.0, 0.0]));
+        assert_eq!(s.opacity, 0.25);
+        assert_eq!(parse_iso("2::0.5").unwrap().color, None);
+        assert!(parse_iso("nan").is_err());
+        assert!(parse_iso("1:#12345").unwrap_err().contains("#RRGGBB"));
+        assert!(parse_iso("1:#123456:2").unwrap_err().contains("opacity"));
+        assert!(parse_iso("1:#123456:1:x").is_err());
+    }
+
+    #[test]
+    fn geometry_flags_parse() {
+        assert_eq!(parse_size("640x480"), Ok([640, 480]));
+        assert!(parse_size("0x10").is_err());
+        assert!(parse_size("640").is_err());
+        assert_eq!(parse_orbit("-30,45"), Ok([-30.0, 45.0]));
+        assert_eq!(parse_vec3("1,-2,3.5"), Ok(Vec3::new(1.0, -2.0, 3.5)));
+        assert!(parse_vec3("1,2").is_err());
+        assert_eq!(
+            parse_clip_box("1,1,1,0,0,0:outside"),
+            Ok(ClipRegion::Box {
+                min: Vec3::ZERO,
+                max: Vec3::ONE,
+                keep: Keep::Outside
+            })
+        );
+        assert!(matches!(
+            parse_clip_box("0,0,0,1,1,1"),
+            Ok(ClipRegion::Box {
+                keep: Keep::Inside,
+                ..
+            })
+        ));
+        assert!(parse_clip_box("0,0,0,1,1,1:sideways").is_err());
+        assert!(parse_clip_plane("0,0,0,1").is_err());
+        assert_eq!(
+            parse_clip_plane("0,0,1,-0.5"),
+            Ok(ClipRegion::Plane {
+                normal: Vec3::Z,
+                offset: -0.5
+            })
+        );
+        assert_eq!(
+            parse_intersector("neubauer:5"),
+            Ok(Intersector::Neubauer { iterations: 5 })
+        );
+        assert!(parse_intersector("magic").is_err());
+    }
+
+    #[test]
+    fn camera_file_errors_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        std::fs::write(&p, r#"{"eye":[0,0,5],"target":[0,0,5]}"#).unwrap();
+        let e = format!("{:#}", load_camera(&p).unwrap_err());
+        assert!(e.contains("cam.json") && e.contains("coincide"), "{e}");
+        std::fs::write(&p, r#"{"eye":[0,5,5],"target":[0,0,0],"extra":true}"#).unwrap();
+        let cam = load_camera(&p).unwrap();
+        assert_eq!(cam.eye, Vec3::new(0.0, 5.0, 5.0));
+    }
 }
