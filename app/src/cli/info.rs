@@ -1,9 +1,399 @@
-//! `isoscope info` (being written).
+//! `isoscope info FILE [--json]`: geometry, voxel type, value range, time steps and a histogram.
+//!
+//! The `--json` output is a stable interface (documented in `docs/cli.md`): [`InfoReport`] is
+//! serialized as is, so renaming a field is a breaking change. Value range, non-finite counts
+//! and the histogram cover every time step of a series (two passes over the steps, with a
+//! progress bar when that takes a while).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use serde::Serialize;
+use volume_core::series::TimeSeries;
+use volume_core::stats::{Histogram, ValueStats};
+use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
+
+use super::open_args::OpenArgs;
+use crate::progress::Progress;
+
+/// Number of histogram bins.
+pub const HISTOGRAM_BINS: usize = 64;
 
 /// Arguments of `isoscope info`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), or a
+    /// time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'.
+    pub file: PathBuf,
+    /// Print machine-readable JSON (a stable interface, see docs/cli.md).
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub open: OpenArgs,
+}
 
-pub fn run(_args: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("isoscope info is not available yet")
+/// Histogram of the finite values over `[lo, hi]` (the value range), equal-width bins, the
+/// last bin closed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HistogramReport {
+    pub lo: f64,
+    pub hi: f64,
+    pub counts: Vec<u64>,
+}
+
+/// What `info` reports; the `--json` schema.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InfoReport {
+    /// The path as given.
+    pub file: String,
+    /// Samples per axis `[x, y, z]`, x fastest.
+    pub dims: [usize; 3],
+    /// `"u8"`, `"i8"`, `"u16"`, `"i16"`, `"u32"`, `"i32"`, `"f32"` or `"f64"`.
+    pub voxel_type: VoxelType,
+    /// Uniform sample spacing per axis (grid frame), or `null` when an axis has explicit
+    /// coordinates (then see `coordinates`).
+    pub spacing: Option<[f64; 3]>,
+    /// Per-axis sample coordinates when any axis is not uniform, else `null`.
+    pub coordinates: Option<[Vec<f64>; 3]>,
+    /// Grid-frame position of voxel (0, 0, 0).
+    pub origin: [f64; 3],
+    /// Grid-frame position of the last voxel (`origin + (dims − 1)·spacing` when uniform).
+    pub extent_max: [f64; 3],
+    /// The grid-to-world affine of oriented data as 3 rows `[m0, m1, m2, t]`, or `null` for the
+    /// identity (world = grid frame).
+    pub world_from_grid: Option<[[f64; 4]; 3]>,
+    /// Smallest and largest finite value over all steps, `null` if no voxel is finite.
+    pub value_range: Option<[f64; 2]>,
+    pub nan_count: u64,
+    /// Count of `+inf` and `−inf` voxels.
+    pub inf_count: u64,
+    /// Voxels per step.
+    pub voxel_count: u64,
+    /// 1 for a single volume.
+    pub time_steps: usize,
+    /// Time of each step (the step index when the file records none).
+    pub time_values: Vec<f64>,
+    /// `null` when no voxel is finite.
+    pub histogram: Option<HistogramReport>,
+    /// True when the voxels are viewed in place in a memory-mapped file (no copy).
+    pub memory_mapped: bool,
+}
+
+/// The source of the steps: one volume or a lazily loaded series.
+enum Steps<'a> {
+    One(&'a RectilinearVolume),
+    Series(&'a TimeSeries),
+}
+
+impl Steps<'_> {
+    fn count(&self) -> usize {
+        match self {
+            Steps::One(_) => 1,
+            Steps::Series(s) => s.step_count(),
+        }
+    }
+
+    fn get(&self, step: usize) -> anyhow::Result<RectilinearVolume> {
+        match self {
+            Steps::One(v) => Ok((*v).clone()),
+            Steps::Series(s) => s
+                .step(step)
+                .with_context(|| format!("loading time step {step}")),
+        }
+    }
+}
+
+fn merge(a: ValueStats, b: ValueStats) -> ValueStats {
+    let finite_range = match (a.finite_range, b.finite_range) {
+        (Some((a0, a1)), Some((b0, b1))) => Some((a0.min(b0), a1.max(b1))),
+        (x, None) | (None, x) => x,
+    };
+    ValueStats {
+        finite_range,
+        nan_count: a.nan_count + b.nan_count,
+        pos_inf_count: a.pos_inf_count + b.pos_inf_count,
+        neg_inf_count: a.neg_inf_count + b.neg_inf_count,
+        count: a.count + b.count,
+    }
+}
+
+/// Opens `path` and gathers the report.
+pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<InfoReport> {
+    let dataset = {
+        let _spinner = Progress::spinner(format!("opening {}", path.display()));
+        formats::open(path, options)?
+    };
+    let (first, steps) = match &dataset {
+        formats::Dataset::Volume(v) => (v, Steps::One(v)),
+        formats::Dataset::Series(s) => (s.first(), Steps::Series(s)),
+    };
+    let grid = &first.grid;
+    let n = steps.count();
+
+    // Pass 1: value range and non-finite counts.
+    let mut stats: Option<ValueStats> = None;
+    {
+        let progress = Progress::bar(n as u64, "value range");
+        for s in 0..n {
+            let v = if s == 0 { first.clone() } else { steps.get(s)? };
+            let st = v.value_stats();
+            stats = Some(stats.map_or(st, |acc| merge(acc, st)));
+            progress.inc(1);
+        }
+    }
+    let stats = stats.context("no time steps")?;
+
+    // Pass 2: histogram over the finite range.
+    let histogram = match stats.finite_range {
+        None => None,
+        Some((lo, hi)) => {
+            let progress = Progress::bar(n as u64, "histogram");
+            let mut counts = vec![0u64; HISTOGRAM_BINS];
+            for s in 0..n {
+                let v = if s == 0 { first.clone() } else { steps.get(s)? };
+                let h = volume_core::dispatch_voxels!(&v.data, b =>
+                    Histogram::compute(b.as_slice(), lo, hi, HISTOGRAM_BINS));
+                counts.iter_mut().zip(&h.counts).for_each(|(c, x)| *c += x);
+                progress.inc(1);
+            }
+            Some(HistogramReport { lo, hi, counts })
+        }
+    };
+
+    let coordinates = if grid.uniform_spacing().is_some() {
+        None
+    } else {
+        Some([0, 1, 2].map(|a| {
+            let axis: &AxisCoords = grid.axis(a);
+            (0..grid.dims()[a]).map(|i| axis.coord(i)).collect()
+        }))
+    };
+    let (lo, hi) = grid.grid_bounds();
+    let world_from_grid = grid.world_from_grid().map(|m| {
+        [0, 1, 2].map(|r| {
+            [
+                m.matrix3.col(0)[r],
+                m.matrix3.col(1)[r],
+                m.matrix3.col(2)[r],
+                m.translation[r],
+            ]
+        })
+    });
+    let time_values = (0..n)
+        .map(|s| match &steps {
+            Steps::One(_) => 0.0,
+            Steps::Series(ts) => ts.time_value(s),
+        })
+        .collect();
+    Ok(InfoReport {
+        file: path.display().to_string(),
+        dims: grid.dims(),
+        voxel_type: first.data.voxel_type(),
+        spacing: grid.uniform_spacing(),
+        coordinates,
+        origin: lo.to_array(),
+        extent_max: hi.to_array(),
+        world_from_grid,
+        value_range: stats.finite_range.map(|(a, b)| [a, b]),
+        nan_count: stats.nan_count,
+        inf_count: stats.pos_inf_count + stats.neg_inf_count,
+        voxel_count: grid.voxel_count() as u64,
+        time_steps: n,
+        time_values,
+        histogram,
+        memory_mapped: first.data.is_shared(),
+    })
+}
+
+fn fmt3(v: [f64; 3]) -> String {
+    format!("{}, {}, {}", v[0], v[1], v[2])
+}
+
+fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut x = bytes as f64;
+    let mut u = 0;
+    while x >= 1024.0 && u + 1 < UNITS.len() {
+        x /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{x:.1} {}", UNITS[u])
+    }
+}
+
+/// The human-readable form of the report.
+pub fn render_text(r: &InfoReport) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let bytes = r.voxel_count * r.voxel_type.size_bytes() as u64;
+    let _ = writeln!(out, "file:         {}", r.file);
+    let _ = writeln!(
+        out,
+        "dims:         {} x {} x {}  ({} voxels, {} per step)",
+        r.dims[0],
+        r.dims[1],
+        r.dims[2],
+        r.voxel_count,
+        human_bytes(bytes)
+    );
+    let _ = writeln!(
+        out,
+        "voxel type:   {}{}",
+        r.voxel_type,
+        if r.memory_mapped {
+            "  (memory-mapped, not copied)"
+        } else {
+            ""
+        }
+    );
+    match (&r.spacing, &r.coordinates) {
+        (Some(s), _) => {
+            let _ = writeln!(out, "spacing:      {}", fmt3(*s));
+        }
+        (None, Some(c)) => {
+            for (a, name) in ["x", "y", "z"].iter().enumerate() {
+                let axis = &c[a];
+                let _ = writeln!(
+                    out,
+                    "coordinates {name}: {} samples, {} .. {} (explicit)",
+                    axis.len(),
+                    axis.first().copied().unwrap_or(f64::NAN),
+                    axis.last().copied().unwrap_or(f64::NAN)
+                );
+            }
+        }
+        (None, None) => {}
+    }
+    let _ = writeln!(out, "origin:       {}", fmt3(r.origin));
+    let _ = writeln!(
+        out,
+        "extent:       {} .. {}",
+        fmt3(r.origin),
+        fmt3(r.extent_max)
+    );
+    match &r.world_from_grid {
+        None => {
+            let _ = writeln!(out, "orientation:  axis-aligned (world = grid frame)");
+        }
+        Some(m) => {
+            let _ = writeln!(out, "orientation:  world_from_grid =");
+            for row in m {
+                let _ = writeln!(
+                    out,
+                    "              [{:>10.6} {:>10.6} {:>10.6} | {:>12.6}]",
+                    row[0], row[1], row[2], row[3]
+                );
+            }
+        }
+    }
+    match r.value_range {
+        Some([lo, hi]) => {
+            let _ = writeln!(out, "value range:  {lo} .. {hi}  (finite values)");
+        }
+        None => {
+            let _ = writeln!(out, "value range:  none (no finite voxel)");
+        }
+    }
+    if r.voxel_type.is_float() {
+        let _ = writeln!(
+            out,
+            "non-finite:   {} NaN (void), {} infinite",
+            r.nan_count, r.inf_count
+        );
+    }
+    if r.time_steps == 1 {
+        let _ = writeln!(out, "time steps:   1");
+    } else {
+        let first = r.time_values.first().copied().unwrap_or(0.0);
+        let last = r.time_values.last().copied().unwrap_or(0.0);
+        let _ = writeln!(
+            out,
+            "time steps:   {} (t = {first} .. {last})",
+            r.time_steps
+        );
+    }
+    if let Some(h) = &r.histogram {
+        let bins = h.counts.len();
+        let width = (h.hi - h.lo) / bins as f64;
+        let max = h.counts.iter().copied().max().unwrap_or(0);
+        let scale = if max > 0 { (max as f64).ln_1p() } else { 1.0 };
+        let _ = writeln!(
+            out,
+            "histogram:    {bins} bins over the value range (bar length ~ log(1 + count))"
+        );
+        for (b, &c) in h.counts.iter().enumerate() {
+            let lo = h.lo + b as f64 * width;
+            let bar = ((c as f64).ln_1p() / scale * 40.0).round() as usize;
+            let _ = writeln!(out, "  {:>12.4} | {:<40} {c}", lo, "#".repeat(bar));
+        }
+    }
+    out
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let options = args.open.open_options()?;
+    let report = gather(&args.file, &options)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", render_text(&report));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> InfoReport {
+        InfoReport {
+            file: "x.nrrd".into(),
+            dims: [2, 3, 4],
+            voxel_type: VoxelType::F32,
+            spacing: Some([1.0, 2.0, 3.0]),
+            coordinates: None,
+            origin: [0.0; 3],
+            extent_max: [1.0, 4.0, 9.0],
+            world_from_grid: None,
+            value_range: Some([0.0, 2.0]),
+            nan_count: 1,
+            inf_count: 0,
+            voxel_count: 24,
+            time_steps: 1,
+            time_values: vec![0.0],
+            histogram: Some(HistogramReport {
+                lo: 0.0,
+                hi: 2.0,
+                counts: vec![20, 0, 3],
+            }),
+            memory_mapped: false,
+        }
+    }
+
+    #[test]
+    fn json_uses_the_documented_names_and_shapes() {
+        let j = serde_json::to_value(report()).unwrap();
+        assert_eq!(j["dims"], serde_json::json!([2, 3, 4]));
+        assert_eq!(j["voxel_type"], "f32");
+        assert_eq!(j["spacing"], serde_json::json!([1.0, 2.0, 3.0]));
+        assert!(j["coordinates"].is_null());
+        assert!(j["world_from_grid"].is_null());
+        assert_eq!(j["value_range"], serde_json::json!([0.0, 2.0]));
+        assert_eq!(j["histogram"]["counts"], serde_json::json!([20, 0, 3]));
+        assert_eq!(j["time_steps"], 1);
+        assert_eq!(j["file"], "x.nrrd");
+    }
+
+    #[test]
+    fn text_has_one_bar_line_per_bin_and_longest_bar_for_the_largest_bin() {
+        let t = render_text(&report());
+        let bars: Vec<&str> = t.lines().filter(|l| l.contains(" | ")).collect();
+        assert_eq!(bars.len(), 3);
+        assert!(bars[0].contains(&"#".repeat(40)));
+        assert!(!bars[1].contains('#'));
+        assert!(t.contains("1 NaN"));
+    }
 }

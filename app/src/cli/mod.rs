@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 pub mod bench;
 pub mod generate;
 pub mod info;
+pub mod open_args;
 pub mod npy;
 pub mod render;
 
