@@ -21,6 +21,7 @@ pub mod grid_scene;
 pub mod intersect;
 pub mod kdtree;
 pub mod math;
+pub mod ooc;
 pub mod render;
 pub mod series;
 pub mod stats;

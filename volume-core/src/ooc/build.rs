@@ -1,0 +1,495 @@
+//! Building the treelet hierarchy (thesis seed 004 §7.8.1, Fig. 7.7).
+//!
+//! 1. The finite value range of the volume fixes the [`Quantizer`].
+//! 2. The LOD pyramid: repeated 2× decimation after a separable binomial `[1 2 1]/4` filter
+//!    per halved axis (a discrete 3D Gaussian, clamped at the borders; void (NaN) taps are
+//!    left out and the weights renormalised). Each halving maps LOD sample `d` to the
+//!    previous level's sample `min(2d, n − 1)`, so LOD samples sit on finest samples
+//!    ([`TreeletLayout::lod_sample`]). An axis stops halving once it reaches the level's
+//!    factor (the kd-tree's node extents may differ per axis).
+//! 3. The merged min/max tree, bottom-up over treelet levels: a node of treelet level `L`
+//!    gets the union of the ranges of the LOD-`L'` cells below it for every `L' ≥ L` (the
+//!    levels whose rendering traverses it), which is the thesis' "union over levels" without
+//!    the levels that never pass through the node. The bottom of a treelet joins its own
+//!    LOD cells with the roots of the finer treelets below, so one level's worth of root
+//!    ranges is all that is kept between levels.
+//!
+//! Memory: the finest data is read in place (a memory map pages it in and out); the coarser
+//! LOD levels are held in memory (at most 1/8 of the input after the first 2× step in all
+//! three axes). Treelets are encoded in parallel batches and handed to the sink in order.
+
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+
+use super::OocError;
+use super::layout::{TreeletLayout, linear_index};
+use super::quantize::Quantizer;
+use super::treelet::{OocMeta, TreeletRecord, TreeletSink};
+use crate::intersect::{cell_corners, corner_range};
+use crate::stats::ValueStats;
+use crate::volume::Grid;
+use crate::voxel::Voxel;
+
+/// Treelets encoded per parallel batch.
+const BATCH: u64 = 2048;
+
+/// What a build produced.
+#[derive(Debug, Clone)]
+pub struct BuildReport {
+    pub meta: OocMeta,
+    pub treelets: u64,
+    /// Encoded treelet bytes (before any page padding).
+    pub bytes: u64,
+    pub build_time: Duration,
+}
+
+/// Builds the treelets of `voxels` (x fastest, on `grid`) with treelets of
+/// `treelet_height` node levels and hands them to `sink`. `progress(done, total)` is called
+/// after each batch with treelet counts.
+pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
+    grid: &Grid,
+    voxels: &[T],
+    layout: TreeletLayout,
+    sink: &mut S,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<BuildReport, OocError> {
+    let start = Instant::now();
+    let dims = grid.dims().map(|d| d as u64);
+    if layout.dims() != dims {
+        return Err(OocError::BadDims {
+            dims,
+            reason: format!("layout was made for dims {:?}", layout.dims()),
+        });
+    }
+    if voxels.len() as u64 != layout.voxel_count() {
+        return Err(OocError::LengthMismatch {
+            dims,
+            expected: layout.voxel_count(),
+            actual: voxels.len() as u64,
+        });
+    }
+    let (lo, hi) = ValueStats::compute(voxels)
+        .finite_range
+        .unwrap_or((0.0, 0.0));
+    let quantizer = Quantizer::for_type(T::TYPE, lo, hi);
+    let meta = OocMeta {
+        grid: grid.clone(),
+        voxel_type: T::TYPE,
+        layout,
+        quantizer,
+    };
+    sink.begin(&meta)?;
+    let layout = &meta.layout;
+    let n = layout.level_count();
+    let total = layout.treelet_count();
+
+    // LOD pyramid, coarse levels only (the finest is `voxels`).
+    let mut lods: Vec<Vec<T>> = vec![Vec::new(); n - 1];
+    {
+        let mut cur: Option<Vec<T>> = None;
+        let mut cur_dims = dims;
+        let mut factor = [1u64; 3];
+        for l in (0..n - 1).rev() {
+            let target = layout.level(l).lod_factor;
+            while factor != target {
+                let halve = [0, 1, 2].map(|a| factor[a] < target[a]);
+                let src: &[T] = cur.as_deref().unwrap_or(voxels);
+                let (next, next_dims) = halve_lod(src, cur_dims, halve);
+                for a in 0..3 {
+                    if halve[a] {
+                        factor[a] *= 2;
+                    }
+                }
+                cur = Some(next);
+                cur_dims = next_dims;
+            }
+            debug_assert_eq!(cur_dims, layout.level(l).lod_dims);
+            lods[l].clone_from(cur.as_ref().expect("coarse level has a factor > 1"));
+        }
+    }
+
+    let mut done = 0u64;
+    let mut bytes = 0u64;
+    let mut child_roots: Option<Vec<[T; 2]>> = None;
+    for l in (0..n).rev() {
+        let lv = *layout.level(l);
+        let lod: &[T] = if l == n - 1 { voxels } else { &lods[l] };
+        let count = lv.treelet_count();
+        let mut roots = Vec::with_capacity(count as usize);
+        let mut first = 0u64;
+        while first < count {
+            let last = (first + BATCH).min(count);
+            let batch: Vec<([T; 2], Vec<u8>)> = (first..last)
+                .into_par_iter()
+                .map(|index| encode_treelet(&meta, l, index, lod, child_roots.as_deref()))
+                .collect();
+            for (i, (root_range, rec)) in batch.into_iter().enumerate() {
+                sink.put(l, first + i as u64, &rec)?;
+                bytes += rec.len() as u64;
+                roots.push(root_range);
+            }
+            done += last - first;
+            progress(done, total);
+            first = last;
+        }
+        child_roots = Some(roots);
+        if l + 1 < n {
+            lods[l] = Vec::new();
+        }
+    }
+    Ok(BuildReport {
+        meta: meta.clone(),
+        treelets: total,
+        bytes,
+        build_time: start.elapsed(),
+    })
+}
+
+#[inline(always)]
+fn union<T: Voxel>(a: [T; 2], b: [T; 2]) -> [T; 2] {
+    [
+        if b[0] < a[0] { b[0] } else { a[0] },
+        if b[1] > a[1] { b[1] } else { a[1] },
+    ]
+}
+
+/// Merged ranges of treelet `(l, index)`; returns its root range and its encoding.
+fn encode_treelet<T: Voxel>(
+    meta: &OocMeta,
+    l: usize,
+    index: u64,
+    lod: &[T],
+    child_roots: Option<&[[T; 2]]>,
+) -> ([T; 2], Vec<u8>) {
+    let layout = &meta.layout;
+    let lv = *layout.level(l);
+    let root = layout.root_of(l, index);
+    let mut ranges = vec![[T::HIGHEST, T::LOWEST]; lv.node_slots()];
+    let lod_dims = lv.lod_dims.map(|d| d as usize);
+    let ctx = RangeCtx {
+        layout,
+        end: lv.end,
+        lod,
+        lod_dims,
+        lod_cells: lv.lod_cells,
+        child_roots,
+    };
+    let root_range = ctx.subtree(lv.first, root, 0, &mut ranges);
+    let q = &meta.quantizer;
+    let mut nodes = vec![0u8; lv.node_slots() * q.node_bytes()].into_boxed_slice();
+    for (h, r) in ranges.iter().enumerate() {
+        q.put(&mut nodes, h, q.encode(r[0].to_f64(), r[1].to_f64()));
+    }
+    let (origin, bdims) = layout.voxel_block(l, root);
+    let mut voxels = Vec::with_capacity((bdims[0] * bdims[1] * bdims[2]) as usize);
+    for k in 0..bdims[2] {
+        for j in 0..bdims[1] {
+            let row = linear_index(lv.lod_dims, [origin[0], origin[1] + j, origin[2] + k]) as usize;
+            voxels.extend_from_slice(&lod[row..row + bdims[0] as usize]);
+        }
+    }
+    let rec = TreeletRecord {
+        level: l,
+        index,
+        height: lv.height(),
+        voxel_origin: origin,
+        voxel_dims: bdims.map(|d| d as usize),
+        nodes,
+        voxels,
+    };
+    (root_range, rec.encode())
+}
+
+struct RangeCtx<'a, T: Voxel> {
+    layout: &'a TreeletLayout,
+    end: usize,
+    lod: &'a [T],
+    lod_dims: [usize; 3],
+    lod_cells: [u64; 3],
+    child_roots: Option<&'a [[T; 2]]>,
+}
+
+impl<T: Voxel> RangeCtx<'_, T> {
+    /// Range of `node` at tree level `level`, filling heap slot `h` and below.
+    fn subtree(&self, level: usize, node: [u64; 3], h: usize, out: &mut [[T; 2]]) -> [T; 2] {
+        if level == self.end {
+            let cell = node.map(|x| x as usize);
+            let mut r = corner_range(&cell_corners(self.lod, self.lod_dims, cell))
+                .map_or([T::HIGHEST, T::LOWEST], |(a, b)| [a, b]);
+            if let Some(c) = self.child_roots {
+                r = union(r, c[linear_index(self.lod_cells, node) as usize]);
+            }
+            return r;
+        }
+        let a = self.layout.shape(level).axis;
+        let child_count = self.layout.shape(level + 1).count[a];
+        let mut left = node;
+        left[a] *= 2;
+        let mut r = self.subtree(level + 1, left, 2 * h + 1, out);
+        let mut right = left;
+        right[a] += 1;
+        if right[a] < child_count {
+            r = union(r, self.subtree(level + 1, right, 2 * h + 2, out));
+        }
+        out[h] = r;
+        r
+    }
+}
+
+/// One 2× decimation step along the axes in `halve` (see the module docs).
+pub(crate) fn halve_lod<T: Voxel>(
+    src: &[T],
+    sdims: [u64; 3],
+    halve: [bool; 3],
+) -> (Vec<T>, [u64; 3]) {
+    let ddims = [0, 1, 2].map(|a| {
+        if halve[a] {
+            (sdims[a] - 1).div_ceil(2) + 1
+        } else {
+            sdims[a]
+        }
+    });
+    let sd = sdims.map(|d| d as usize);
+    let dd = ddims.map(|d| d as usize);
+    let mut out = vec![T::default(); dd[0] * dd[1] * dd[2]];
+    // Taps per axis: (offset, weight).
+    let taps = |a: usize| -> &'static [(isize, f64)] {
+        if halve[a] {
+            &[(-1, 0.25), (0, 0.5), (1, 0.25)]
+        } else {
+            &[(0, 1.0)]
+        }
+    };
+    let (tx, ty, tz) = (taps(0), taps(1), taps(2));
+    let center = |a: usize, d: usize| if halve[a] { (2 * d).min(sd[a] - 1) } else { d };
+    let clampi =
+        |a: usize, c: usize, o: isize| (c as isize + o).clamp(0, sd[a] as isize - 1) as usize;
+    out.par_chunks_mut(dd[0] * dd[1])
+        .enumerate()
+        .for_each(|(k, slice)| {
+            let cz = center(2, k);
+            for j in 0..dd[1] {
+                let cy = center(1, j);
+                for i in 0..dd[0] {
+                    let cx = center(0, i);
+                    let (mut sum, mut wsum) = (0.0f64, 0.0f64);
+                    for &(oz, wz) in tz {
+                        let z = clampi(2, cz, oz);
+                        for &(oy, wy) in ty {
+                            let y = clampi(1, cy, oy);
+                            for &(ox, wx) in tx {
+                                let x = clampi(0, cx, ox);
+                                let v = src[x + sd[0] * (y + sd[1] * z)].to_f64();
+                                if v.is_finite() {
+                                    let w = wx * wy * wz;
+                                    sum += w * v;
+                                    wsum += w;
+                                }
+                            }
+                        }
+                    }
+                    slice[i + dd[0] * j] = if wsum > 0.0 {
+                        T::from_f64(sum / wsum)
+                    } else {
+                        T::from_f64(f64::NAN)
+                    };
+                }
+            }
+        });
+    (out, ddims)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ooc::treelet::{MemoryStorage, TreeletStorage};
+
+    fn field(dims: [usize; 3], seed: u64) -> Vec<f32> {
+        let mut v = Vec::with_capacity(dims.iter().product());
+        let mut s = seed;
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    s = s
+                        .wrapping_mul(6_364_136_223_846_793_005)
+                        .wrapping_add(1_442_695_040_888_963_407);
+                    let noise = (s >> 40) as f32 / (1u64 << 24) as f32;
+                    v.push((i as f32 * 0.3).sin() * 10.0 + j as f32 * 0.5 - k as f32 + noise);
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn halving_keeps_linear_fields_and_sample_positions() {
+        let dims = [9u64, 6, 5];
+        let f = |i: f64, j: f64, k: f64| 2.0 * i - 3.0 * j + 0.5 * k + 1.0;
+        let mut src = Vec::new();
+        for k in 0..5 {
+            for j in 0..6 {
+                for i in 0..9 {
+                    src.push(f(f64::from(i), f64::from(j), f64::from(k)) as f32);
+                }
+            }
+        }
+        let (out, d) = halve_lod(&src, dims, [true, true, false]);
+        assert_eq!(d, [5, 4, 5]);
+        // Interior samples (taps not clamped): the binomial filter reproduces linear
+        // functions, at finest sample (2i, 2j, k).
+        for k in 0..5usize {
+            for j in 1..3usize {
+                for i in 1..4usize {
+                    let got = f64::from(out[i + 5 * (j + 4 * k)]);
+                    let want = f((2 * i) as f64, (2 * j) as f64, k as f64);
+                    assert!((got - want).abs() < 1e-4, "{i} {j} {k}: {got} {want}");
+                }
+            }
+        }
+        // Void taps are left out, an all-void neighbourhood stays void.
+        let mut holes = vec![1.0f32; 27];
+        holes[13] = f32::NAN;
+        let (o, _) = halve_lod(&holes, [3, 3, 3], [true; 3]);
+        assert!(o.iter().all(|&x| x == 1.0));
+        let (o, _) = halve_lod(&[f32::NAN; 8], [2, 2, 2], [true; 3]);
+        assert!(o.iter().all(|x| x.is_nan()));
+    }
+
+    /// Every stored node code equals the encoding of the brute-force union over the LOD
+    /// levels rendered through the node (independent truth: geometric containment).
+    #[test]
+    fn merged_ranges_equal_brute_force_union_over_levels() {
+        for (dims, h) in [([13usize, 9, 7], 3u32), ([20, 5, 11], 4), ([6, 6, 6], 2)] {
+            let voxels = field(dims, 7);
+            let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+            let layout = TreeletLayout::new(dims.map(|d| d as u64), h).unwrap();
+            let mut store = MemoryStorage::new();
+            let report =
+                build_treelets(&grid, &voxels, layout.clone(), &mut store, &mut |_, _| {}).unwrap();
+            let meta = store.meta().clone();
+            assert_eq!(report.treelets, layout.treelet_count());
+            let n = layout.level_count();
+            assert!(n >= 2, "{dims:?}");
+            // LOD volumes by repeated halving, independent of the build's schedule: halve
+            // axis by axis.
+            let mut lods: Vec<(Vec<f32>, [u64; 3])> = Vec::new();
+            for l in 0..n {
+                let target = layout.level(l).lod_factor;
+                let mut cur = (voxels.clone(), dims.map(|d| d as u64));
+                let mut fac = [1u64; 3];
+                while fac != target {
+                    let halve = [0, 1, 2].map(|a| fac[a] < target[a]);
+                    cur = halve_lod(&cur.0, cur.1, halve);
+                    for a in 0..3 {
+                        if halve[a] {
+                            fac[a] *= 2;
+                        }
+                    }
+                }
+                assert_eq!(cur.1, layout.level(l).lod_dims);
+                lods.push(cur);
+            }
+            let q = meta.quantizer;
+            for l in 0..n {
+                let lv = *layout.level(l);
+                for index in 0..lv.treelet_count() {
+                    let rec = TreeletRecord::<f32>::decode(
+                        &meta,
+                        l,
+                        index,
+                        &store.fetch(l, index).unwrap(),
+                    )
+                    .unwrap();
+                    let root = layout.root_of(l, index);
+                    // Walk the heap: (tree level, node, slot).
+                    let mut todo = vec![(lv.first, root, 0usize)];
+                    while let Some((level, node, h)) = todo.pop() {
+                        if level == lv.end {
+                            continue;
+                        }
+                        let ext = layout.shape(level).extent;
+                        let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+                        for (lp, (lod, ld)) in lods.iter().enumerate().skip(l) {
+                            let e = layout.level(lp).lod_factor;
+                            let lc = layout.level(lp).lod_cells;
+                            for k in 0..lc[2] {
+                                for j in 0..lc[1] {
+                                    for i in 0..lc[0] {
+                                        let c = [i, j, k];
+                                        if (0..3).all(|a| c[a] * e[a] / ext[a] == node[a]) {
+                                            let ld = ld.map(|x| x as usize);
+                                            let cs = cell_corners(lod, ld, c.map(|x| x as usize));
+                                            let (a, b) = corner_range(&cs).unwrap();
+                                            mn = mn.min(a);
+                                            mx = mx.max(b);
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                        let want = q.encode(f64::from(mn), f64::from(mx));
+                        assert_eq!(q.get(&rec.nodes, h), want, "{dims:?} l{l} {node:?}@{level}");
+                        let a = layout.shape(level).axis;
+                        let cc = layout.shape(level + 1).count[a];
+                        let mut left = node;
+                        left[a] *= 2;
+                        todo.push((level + 1, left, 2 * h + 1));
+                        let mut right = left;
+                        right[a] += 1;
+                        if right[a] < cc {
+                            todo.push((level + 1, right, 2 * h + 2));
+                        } else if level + 1 < lv.end {
+                            // Virtual node: empty range.
+                            let e = q.get(&rec.nodes, 2 * h + 2);
+                            assert!(e[0] > e[1]);
+                        }
+                    }
+                    // Voxel block = LOD samples.
+                    let (o, d) = layout.voxel_block(l, root);
+                    let (lod, ld) = &lods[l];
+                    for k in 0..d[2] {
+                        for j in 0..d[1] {
+                            for i in 0..d[0] {
+                                let g = linear_index(*ld, [o[0] + i, o[1] + j, o[2] + k]);
+                                let b = linear_index(d, [i, j, k]);
+                                // Halving all axes at once or axis by axis rounds the
+                                // f32 intermediates differently.
+                                let (x, y) = (rec.voxels[b as usize], lod[g as usize]);
+                                assert!((x - y).abs() <= 1e-5 * y.abs().max(1.0), "{x} {y}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn records_reject_damage_and_misplacement() {
+        let dims = [9usize, 9, 9];
+        let voxels: Vec<u8> = (0..729).map(|i| (i % 200) as u8).collect();
+        let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+        let layout = TreeletLayout::new([9; 3], 3).unwrap();
+        let mut store = MemoryStorage::new();
+        build_treelets(&grid, &voxels, layout, &mut store, &mut |_, _| {}).unwrap();
+        let meta = store.meta().clone();
+        let good = store.fetch(1, 0).unwrap();
+        assert!(TreeletRecord::<u8>::decode(&meta, 1, 0, &good).is_ok());
+        assert!(TreeletRecord::<u16>::decode(&meta, 1, 0, &good).is_err());
+        assert!(TreeletRecord::<u8>::decode(&meta, 1, 1, &good).is_err());
+        assert!(TreeletRecord::<u8>::decode(&meta, 1, 0, &good[..good.len() - 1]).is_err());
+        let mut bad = good.clone();
+        bad[20] ^= 0x40; // voxel origin
+        let e = TreeletRecord::<u8>::decode(&meta, 1, 0, &bad).unwrap_err();
+        assert!(e.to_string().contains("voxel block"), "{e}");
+        let err = build_treelets(
+            &grid,
+            &voxels[1..],
+            TreeletLayout::new([9; 3], 3).unwrap(),
+            &mut store,
+            &mut |_, _| {},
+        );
+        assert!(matches!(err, Err(OocError::LengthMismatch { .. })));
+    }
+}

@@ -1,0 +1,930 @@
+//! Out-of-core rendering (thesis seed 004 §7.8.2–7.8.3): the loader thread, the bit table
+//! of resident treelets, and [`OocScene`], the [`IsoScene`] render threads trace.
+//!
+//! [`OocVolume`] owns a [`TreeletStorage`] and a loader thread. The first treelet is loaded
+//! before the thread starts (§7.8.2). For the current isovalues the thread sweeps the
+//! treelet levels in order: from every resident treelet of level `L` it walks the nodes
+//! whose quantized range passes an isovalue and collects the treelets of level `L + 1`
+//! below them (index order), fetches the ones not yet resident, and *publishes* the level
+//! once all are in: the "bit table" is the per-level set of resident treelet ids in an
+//! immutable snapshot. Render threads never wait on loading: [`OocVolume::scene`] clones the
+//! current snapshot (one short lock per frame), which is the thesis' "check the available
+//! LODs before a new frame".
+//!
+//! New isovalues with the same quantized code bounds change nothing; otherwise loading
+//! restarts from level 1, reusing resident treelets that are still needed; the others are
+//! evicted (freed when the last frame holding an old snapshot ends). A memory budget stops
+//! the sweep before a level would exceed it: rendering then stays at the last complete
+//! level ([`OocVolume::budget_limited`]).
+//!
+//! Traversal (Listing 7.3) is the slim kd-tree traversal of [`crate::kdtree`] with node
+//! ranges read from the current treelet: at the bottom of a treelet it continues in the
+//! child treelet if its level is published and the treelet resident, and otherwise
+//! intersects the cell of the current level's LOD voxels with the shared cell intersector
+//! and normal code ([`intersect_cell`], [`crate::grid_scene::make_hit`]) through a
+//! treelet-local [`TraversalFrame`]. At the finest level the cells, voxels and positions are
+//! the in-core ones, so hits equal [`crate::grid_scene::GridScene`]'s; quantized ranges only
+//! add visited nodes.
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use super::OocError;
+use super::layout::linear_index;
+use super::quantize::CodeQuery;
+use super::treelet::{OocMeta, TreeletRecord, TreeletStorage};
+use crate::grid_scene::make_hit;
+use crate::intersect::{
+    CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
+    intersect_cell,
+};
+use crate::math::{Aabb, Ray};
+use crate::render::{Hit, IsoScene, Stats};
+use crate::voxel::Voxel;
+
+/// A treelet in memory with its local frame (positions of its voxel block).
+#[derive(Debug)]
+pub struct ResidentTreelet<T: Voxel> {
+    rec: TreeletRecord<T>,
+    frame: TraversalFrame,
+}
+
+impl<T: Voxel> ResidentTreelet<T> {
+    fn bytes(&self) -> u64 {
+        (self.rec.nodes.len()
+            + self.rec.voxels.len() * size_of::<T>()
+            + self.frame.pos.iter().map(|p| p.len() * 4).sum::<usize>()
+            + size_of::<Self>()) as u64
+    }
+}
+
+type LevelMap<T> = HashMap<u64, Arc<ResidentTreelet<T>>>;
+
+/// What one frame renders with: the published levels (the bit table).
+#[derive(Debug)]
+struct Snapshot<T: Voxel> {
+    levels: Vec<Arc<LevelMap<T>>>,
+    resident_bytes: u64,
+}
+
+/// Loader options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OocOptions {
+    /// Resident treelet bytes the loader may hold.
+    pub budget_bytes: u64,
+}
+
+impl Default for OocOptions {
+    fn default() -> Self {
+        Self {
+            budget_bytes: 2 << 30,
+        }
+    }
+}
+
+#[derive(Debug)]
+struct State<T: Voxel> {
+    snapshot: Arc<Snapshot<T>>,
+    wanted: Vec<CodeQuery>,
+    all_pass: bool,
+    finished: bool,
+    budget_limited: bool,
+    error: Option<OocError>,
+}
+
+struct Shared<T: Voxel> {
+    storage: Arc<dyn TreeletStorage>,
+    meta: OocMeta,
+    frame: TraversalFrame,
+    /// `frame` without sample tables, cloned per treelet.
+    template: TraversalFrame,
+    options: OocOptions,
+    request: AtomicU64,
+    stop: AtomicBool,
+    state: Mutex<State<T>>,
+    changed: Condvar,
+}
+
+/// An out-of-core volume: storage, loader thread and published levels.
+pub struct OocVolume<T: Voxel> {
+    shared: Arc<Shared<T>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl<T: Voxel> std::fmt::Debug for OocVolume<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OocVolume")
+            .field("dims", &self.shared.meta.layout.dims())
+            .field("loaded_levels", &self.loaded_levels())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Code bounds of `isovalues` (all-pass when there are more than fit inline).
+fn queries_of(meta: &OocMeta, isovalues: &[f32]) -> (Vec<CodeQuery>, bool) {
+    let q: Vec<CodeQuery> = isovalues
+        .iter()
+        .filter_map(|&c| meta.quantizer.query(c))
+        .collect();
+    let all = q.len() > INLINE_ISOVALUES;
+    (if all { Vec::new() } else { q }, all)
+}
+
+impl<T: Voxel> Shared<T> {
+    fn load(&self, level: usize, index: u64) -> Result<ResidentTreelet<T>, OocError> {
+        let bytes = self.storage.fetch(level, index)?;
+        let rec = TreeletRecord::<T>::decode(&self.meta, level, index, &bytes)?;
+        let mut frame = self.template.clone();
+        let layout = &self.meta.layout;
+        frame.pos = std::array::from_fn(|a| {
+            (0..rec.voxel_dims[a] as u64)
+                .map(|i| {
+                    self.frame.pos[a][layout.lod_sample(level, a, rec.voxel_origin[a] + i) as usize]
+                })
+                .collect()
+        });
+        Ok(ResidentTreelet { rec, frame })
+    }
+
+    /// Indices of level `l + 1` treelets below the passing nodes of `map` (level `l`).
+    fn needed_children(
+        &self,
+        map: &LevelMap<T>,
+        l: usize,
+        queries: &[CodeQuery],
+        all: bool,
+    ) -> Vec<u64> {
+        let layout = &self.meta.layout;
+        let q = &self.meta.quantizer;
+        let lv = *layout.level(l);
+        let next_roots = layout.level(l + 1).roots;
+        let mut out = Vec::new();
+        let mut ids: Vec<u64> = map.keys().copied().collect();
+        ids.sort_unstable();
+        let mut todo = Vec::new();
+        for id in ids {
+            let t = &map[&id];
+            todo.push((lv.first, layout.root_of(l, id), 0usize));
+            while let Some((level, node, h)) = todo.pop() {
+                if level == lv.end {
+                    out.push(linear_index(next_roots, node));
+                    continue;
+                }
+                let c = q.get(&t.rec.nodes, h);
+                if !(all || queries.iter().any(|x| x.passes(c[0], c[1]))) {
+                    continue;
+                }
+                let a = layout.shape(level).axis;
+                let mut left = node;
+                left[a] *= 2;
+                let mut right = left;
+                right[a] += 1;
+                if right[a] < layout.shape(level + 1).count[a] {
+                    todo.push((level + 1, right, 2 * h + 2));
+                }
+                todo.push((level + 1, left, 2 * h + 1));
+            }
+        }
+        out.sort_unstable();
+        out
+    }
+
+    fn publish(&self, request: u64, levels: &[Arc<LevelMap<T>>], bytes: u64) {
+        let mut st = self.state.lock().expect("loader state");
+        if self.request.load(Ordering::Acquire) == request {
+            st.snapshot = Arc::new(Snapshot {
+                levels: levels.to_vec(),
+                resident_bytes: bytes,
+            });
+            self.changed.notify_all();
+        }
+    }
+
+    /// One sweep for `queries`; `Ok(true)` when the budget stopped it.
+    fn sweep(
+        &self,
+        request: u64,
+        queries: &[CodeQuery],
+        all: bool,
+        old: &Snapshot<T>,
+    ) -> Result<bool, OocError> {
+        let n = self.meta.layout.level_count();
+        let mut levels = vec![old.levels[0].clone()];
+        let mut bytes: u64 = levels[0].values().map(|t| t.bytes()).sum();
+        self.publish(request, &levels, bytes);
+        for l in 1..n {
+            let needed = if queries.is_empty() && !all {
+                Vec::new()
+            } else {
+                self.needed_children(&levels[l - 1], l - 1, queries, all)
+            };
+            let mut map = LevelMap::with_capacity(needed.len());
+            for idx in needed {
+                if self.request.load(Ordering::Acquire) != request
+                    || self.stop.load(Ordering::Acquire)
+                {
+                    return Ok(false);
+                }
+                let t = match old.levels.get(l).and_then(|m| m.get(&idx)) {
+                    Some(t) => t.clone(),
+                    None => Arc::new(self.load(l, idx)?),
+                };
+                bytes += t.bytes();
+                if bytes > self.options.budget_bytes {
+                    return Ok(true);
+                }
+                map.insert(idx, t);
+            }
+            levels.push(Arc::new(map));
+            self.publish(request, &levels, bytes);
+        }
+        Ok(false)
+    }
+
+    fn run(&self) {
+        loop {
+            let (queries, all, request, old) = {
+                let mut st = self.state.lock().expect("loader state");
+                while st.finished && !self.stop.load(Ordering::Acquire) {
+                    st = self.changed.wait(st).expect("loader state");
+                }
+                if self.stop.load(Ordering::Acquire) {
+                    return;
+                }
+                (
+                    st.wanted.clone(),
+                    st.all_pass,
+                    self.request.load(Ordering::Acquire),
+                    st.snapshot.clone(),
+                )
+            };
+            let result = self.sweep(request, &queries, all, &old);
+            drop(old);
+            let mut st = self.state.lock().expect("loader state");
+            if self.request.load(Ordering::Acquire) != request {
+                continue;
+            }
+            st.finished = true;
+            match result {
+                Ok(limited) => st.budget_limited = limited,
+                Err(e) => st.error = Some(e),
+            }
+            self.changed.notify_all();
+        }
+    }
+}
+
+impl<T: Voxel> OocVolume<T> {
+    /// Loads the first treelet and starts the loader thread (no isovalues yet).
+    pub fn open(storage: Arc<dyn TreeletStorage>, options: OocOptions) -> Result<Self, OocError> {
+        let meta = storage.meta().clone();
+        if meta.voxel_type != T::TYPE {
+            return Err(OocError::Storage(format!(
+                "stored voxel type {} opened as {}",
+                meta.voxel_type.name(),
+                T::TYPE.name()
+            )));
+        }
+        let frame = TraversalFrame::new(&meta.grid);
+        let mut template = frame.clone();
+        template.pos = std::array::from_fn(|_| Box::default());
+        let shared = Shared {
+            storage,
+            meta,
+            frame,
+            template,
+            options,
+            request: AtomicU64::new(0),
+            stop: AtomicBool::new(false),
+            state: Mutex::new(State {
+                snapshot: Arc::new(Snapshot {
+                    levels: Vec::new(),
+                    resident_bytes: 0,
+                }),
+                wanted: Vec::new(),
+                all_pass: false,
+                finished: true,
+                budget_limited: false,
+                error: None,
+            }),
+            changed: Condvar::new(),
+        };
+        let first = Arc::new(shared.load(0, 0)?);
+        let bytes = first.bytes();
+        let mut level0 = LevelMap::new();
+        level0.insert(0, first);
+        shared.state.lock().expect("loader state").snapshot = Arc::new(Snapshot {
+            levels: vec![Arc::new(level0)],
+            resident_bytes: bytes,
+        });
+        let shared = Arc::new(shared);
+        let worker = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("isoscope-treelet-loader".into())
+            .spawn(move || worker.run())
+            .map_err(|e| OocError::Storage(format!("cannot start the loader thread: {e}")))?;
+        Ok(Self {
+            shared,
+            thread: Some(thread),
+        })
+    }
+
+    pub fn meta(&self) -> &OocMeta {
+        &self.shared.meta
+    }
+
+    /// Asks the loader for the treelets of `isovalues`. Same quantized bounds: no reload.
+    pub fn set_isovalues(&self, isovalues: &[f32]) {
+        let (q, all) = queries_of(&self.shared.meta, isovalues);
+        let mut st = self.shared.state.lock().expect("loader state");
+        if st.wanted == q && st.all_pass == all && st.snapshot.levels.len() > 1 {
+            return;
+        }
+        st.wanted = q;
+        st.all_pass = all;
+        st.finished = false;
+        st.budget_limited = false;
+        st.error = None;
+        self.shared.request.fetch_add(1, Ordering::AcqRel);
+        self.shared.changed.notify_all();
+    }
+
+    /// The scene for the next frame (the levels published so far).
+    pub fn scene(&self, intersector: Intersector) -> OocScene<T> {
+        let snap = self
+            .shared
+            .state
+            .lock()
+            .expect("loader state")
+            .snapshot
+            .clone();
+        OocScene {
+            shared: self.shared.clone(),
+            snap,
+            intersector,
+        }
+    }
+
+    /// Levels published for the current isovalues (1 = the top treelet only).
+    pub fn loaded_levels(&self) -> usize {
+        self.shared
+            .state
+            .lock()
+            .expect("loader state")
+            .snapshot
+            .levels
+            .len()
+    }
+
+    pub fn level_count(&self) -> usize {
+        self.shared.meta.layout.level_count()
+    }
+
+    /// Bytes of resident treelets in the current snapshot.
+    pub fn resident_bytes(&self) -> u64 {
+        self.shared
+            .state
+            .lock()
+            .expect("loader state")
+            .snapshot
+            .resident_bytes
+    }
+
+    /// True when the loader is idle for the current isovalues.
+    pub fn is_finished(&self) -> bool {
+        self.shared.state.lock().expect("loader state").finished
+    }
+
+    pub fn budget_limited(&self) -> bool {
+        self.shared
+            .state
+            .lock()
+            .expect("loader state")
+            .budget_limited
+    }
+
+    /// The error that stopped the last sweep (a damaged treelet, an I/O error).
+    pub fn error(&self) -> Option<OocError> {
+        self.shared
+            .state
+            .lock()
+            .expect("loader state")
+            .error
+            .clone()
+    }
+
+    /// Waits (not from a render thread) until the loader is idle or `timeout` passes;
+    /// returns whether it finished.
+    pub fn wait_until_finished(&self, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        let mut st = self.shared.state.lock().expect("loader state");
+        while !st.finished {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return false;
+            }
+            st = self
+                .shared
+                .changed
+                .wait_timeout(st, left)
+                .expect("loader state")
+                .0;
+        }
+        true
+    }
+}
+
+impl<T: Voxel> Drop for OocVolume<T> {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::Release);
+        {
+            let _st = self.shared.state.lock();
+            self.shared.changed.notify_all();
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// One frame's view of an [`OocVolume`]: immutable, shared by all render threads.
+pub struct OocScene<T: Voxel> {
+    shared: Arc<Shared<T>>,
+    snap: Arc<Snapshot<T>>,
+    intersector: Intersector,
+}
+
+impl<T: Voxel> std::fmt::Debug for OocScene<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OocScene")
+            .field("level", &self.level())
+            .finish_non_exhaustive()
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Entry {
+    node: [u32; 3],
+    level: u32,
+    h: u32,
+    tl: u32,
+    ti: u64,
+    t_near: f32,
+    t_far: f32,
+}
+
+const INLINE_STACK: usize = 64;
+
+impl<T: Voxel> OocScene<T> {
+    /// The finest level this frame can reach (0 = coarsest).
+    pub fn level(&self) -> usize {
+        self.snap.levels.len().saturating_sub(1)
+    }
+
+    pub fn resident_bytes(&self) -> u64 {
+        self.snap.resident_bytes
+    }
+
+    /// [`IsoScene::first_hit`] with a static intersector.
+    pub fn first_hit_with<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<Hit> {
+        stats.ray();
+        let frame = &self.shared.frame;
+        let local = frame.to_local(ray);
+        let isos = IsoSet::<T>::new(isovalues);
+        if isos.is_empty() {
+            return None;
+        }
+        let (t0, t1) = frame.clip(&local, t_min, t_max)?;
+        let mut queries = [CodeQuery { a: 0, b: 0 }; INLINE_ISOVALUES];
+        let mut nq = 0;
+        let mut all = false;
+        for &c in isovalues {
+            if let Some(q) = self.shared.meta.quantizer.query(c) {
+                if nq == INLINE_ISOVALUES {
+                    all = true;
+                    break;
+                }
+                queries[nq] = q;
+                nq += 1;
+            }
+        }
+        if nq == 0 {
+            return None;
+        }
+        let depth = self.shared.meta.layout.depth();
+        let (h, t) = if depth < INLINE_STACK {
+            let mut stack = [Entry::default(); INLINE_STACK];
+            self.traverse(
+                &local,
+                t0,
+                t1,
+                &isos,
+                &queries[..nq],
+                all,
+                intersector,
+                stats,
+                &mut stack,
+            )?
+        } else {
+            let mut stack = vec![Entry::default(); depth + 1];
+            self.traverse(
+                &local,
+                t0,
+                t1,
+                &isos,
+                &queries[..nq],
+                all,
+                intersector,
+                stats,
+                &mut stack,
+            )?
+        };
+        Some(make_hit(
+            &t.frame,
+            &t.rec.voxels,
+            t.rec.voxel_dims,
+            &local,
+            ray,
+            h,
+        ))
+    }
+
+    #[inline(always)]
+    fn traverse<'s, C: CellIntersector, S: Stats>(
+        &'s self,
+        ray: &LocalRay,
+        t0: f32,
+        t1: f32,
+        isos: &IsoSet<T>,
+        queries: &[CodeQuery],
+        all: bool,
+        intersector: C,
+        stats: &mut S,
+        stack: &mut [Entry],
+    ) -> Option<(CellHit, &'s ResidentTreelet<T>)> {
+        let meta = &self.shared.meta;
+        let layout = &meta.layout;
+        let shapes = layout.shapes();
+        let cells = layout.cells();
+        let q = &meta.quantizer;
+        let frame = &self.shared.frame;
+        let levels = &self.snap.levels;
+        let render = levels.len().checked_sub(1)?;
+        let mut cur: &ResidentTreelet<T> = levels[0].get(&0)?;
+        let (mut tl, mut ti) = (0usize, 0u64);
+        let mut end = layout.level(0).end;
+        let mut node = [0u32; 3];
+        let mut level = 0usize;
+        let mut h = 0usize;
+        let (mut ta, mut tb) = (t0, t1);
+        let mut sp = 0usize;
+        let mut best: Option<(CellHit, &ResidentTreelet<T>)> = None;
+        'outer: loop {
+            loop {
+                if level == end {
+                    if tl < render {
+                        let idx = linear_index(layout.level(tl + 1).roots, node.map(u64::from));
+                        if let Some(child) = levels[tl + 1].get(&idx) {
+                            cur = child;
+                            tl += 1;
+                            ti = idx;
+                            end = layout.level(tl).end;
+                            h = 0;
+                            continue;
+                        }
+                    }
+                    // Intersect the cell of this level's LOD voxels (Listing 7.3).
+                    let o = cur.rec.voxel_origin;
+                    let cell = [0, 1, 2].map(|a| (u64::from(node[a]) - o[a]) as usize);
+                    if let Some(hit) = intersect_cell(
+                        &cur.frame,
+                        &cur.rec.voxels,
+                        cur.rec.voxel_dims,
+                        ray,
+                        cell,
+                        t0,
+                        t1,
+                        isos,
+                        intersector,
+                        stats,
+                    ) && best.is_none_or(|b| hit.t < b.0.t)
+                    {
+                        best = Some((hit, cur));
+                    }
+                    break;
+                }
+                let c = q.get(&cur.rec.nodes, h);
+                if !(all || queries.iter().any(|x| x.passes(c[0], c[1]))) {
+                    break;
+                }
+                stats.node();
+                let sh = &shapes[level];
+                let a = sh.axis;
+                let m = u64::from(node[a]) * sh.extent[a] + sh.extent[a] / 2;
+                let split = if m < cells[a] {
+                    frame.pos[a][m as usize]
+                } else {
+                    f32::INFINITY
+                };
+                let mut left = node;
+                left[a] *= 2;
+                let mut right = left;
+                right[a] += 1;
+                let right_real = u64::from(right[a]) < shapes[level + 1].count[a];
+                let (h_left, h_right) = (2 * h + 1, 2 * h + 2);
+                level += 1;
+                let o = ray.origin[a];
+                let d = ray.dir[a];
+                let entry = |node: [u32; 3], h: usize, t_near: f32, t_far: f32| Entry {
+                    node,
+                    level: level as u32,
+                    h: h as u32,
+                    tl: tl as u32,
+                    ti,
+                    t_near,
+                    t_far,
+                };
+                if d == 0.0 {
+                    if o < split {
+                        node = left;
+                        h = h_left;
+                    } else if o > split {
+                        if !right_real {
+                            break;
+                        }
+                        node = right;
+                        h = h_right;
+                    } else {
+                        // In the split plane: both sides (seed 000 §5).
+                        if right_real {
+                            stack[sp] = entry(right, h_right, ta, tb);
+                            sp += 1;
+                        }
+                        node = left;
+                        h = h_left;
+                    }
+                    continue;
+                }
+                let ts = (split - o) * ray.inv_dir[a];
+                let (near, far, h_near, h_far, near_real, far_real) = if d > 0.0 {
+                    (left, right, h_left, h_right, true, right_real)
+                } else {
+                    (right, left, h_right, h_left, right_real, true)
+                };
+                if ts > tb {
+                    if !near_real {
+                        break;
+                    }
+                    node = near;
+                    h = h_near;
+                } else if ts < ta {
+                    if !far_real {
+                        break;
+                    }
+                    node = far;
+                    h = h_far;
+                } else {
+                    if far_real {
+                        stack[sp] = entry(far, h_far, ts, tb);
+                        sp += 1;
+                    }
+                    if !near_real {
+                        break;
+                    }
+                    node = near;
+                    h = h_near;
+                    tb = ts;
+                }
+            }
+            loop {
+                if sp == 0 {
+                    break 'outer;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                let limit = best.map_or(f32::INFINITY, |b| b.0.t);
+                if e.t_near <= limit {
+                    node = e.node;
+                    level = e.level as usize;
+                    h = e.h as usize;
+                    if e.tl as usize != tl || e.ti != ti {
+                        tl = e.tl as usize;
+                        ti = e.ti;
+                        cur = levels[tl].get(&ti)?;
+                        end = layout.level(tl).end;
+                    }
+                    ta = e.t_near;
+                    tb = e.t_far.min(limit);
+                    continue 'outer;
+                }
+            }
+        }
+        best
+    }
+}
+
+impl<T: Voxel> IsoScene for OocScene<T> {
+    fn world_bounds(&self) -> Aabb {
+        self.shared.frame.world_bounds()
+    }
+
+    #[inline]
+    fn first_hit<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isovalues: &[f32],
+        stats: &mut S,
+    ) -> Option<Hit> {
+        crate::dispatch_intersector!(self.intersector, c => self.first_hit_with(ray, t_min, t_max, isovalues, c, stats))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid_scene::GridScene;
+    use crate::kdtree::KdTreeConfig;
+    use crate::ooc::build::build_treelets;
+    use crate::ooc::layout::TreeletLayout;
+    use crate::ooc::treelet::MemoryStorage;
+    use crate::render::NoStats;
+    use crate::volume::{Grid, VoxelBuffer};
+    use glam::Vec3;
+
+    /// Two blobs (distance-like fields) on an anisotropic grid.
+    fn blobs(dims: [usize; 3]) -> Vec<f32> {
+        let mut v = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let p = Vec3::new(i as f32, j as f32, k as f32);
+                    let a = (p - Vec3::new(9.0, 8.0, 6.0)).length();
+                    let b = (p - Vec3::new(22.0, 14.0, 10.0)).length() * 1.3;
+                    v.push(a.min(b) + 0.3 * (i as f32 * 0.7).sin());
+                }
+            }
+        }
+        v
+    }
+
+    fn rays(bounds: Aabb, n: usize) -> Vec<Ray> {
+        let mut s = 12_345u64;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let c = (bounds.min + bounds.max) * 0.5;
+        let ext = bounds.max - bounds.min;
+        let mut out = Vec::new();
+        for i in 0..n {
+            let target = bounds.min + Vec3::new(rnd(), rnd(), rnd()) * ext;
+            if i % 7 == 0 {
+                // Axis-aligned rays through sample planes (split-plane robustness).
+                let mut o = target.round();
+                o.z = bounds.min.z - 5.0;
+                out.push(Ray::new(o, Vec3::Z));
+                continue;
+            }
+            let origin =
+                c + Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize() * ext.length();
+            out.push(Ray::new(origin, (target - origin).normalize()));
+        }
+        out
+    }
+
+    fn setup(dims: [usize; 3], h: u32, budget: u64) -> (Grid, Vec<f32>, OocVolume<f32>) {
+        let grid = Grid::uniform(dims, [-3.0, 1.0, 2.0], [1.0, 0.75, 1.5]).unwrap();
+        let voxels = blobs(dims);
+        let layout = TreeletLayout::new(dims.map(|d| d as u64), h).unwrap();
+        let mut store = MemoryStorage::new();
+        build_treelets(&grid, &voxels, layout, &mut store, &mut |_, _| {}).unwrap();
+        let vol = OocVolume::<f32>::open(
+            Arc::new(store),
+            OocOptions {
+                budget_bytes: budget,
+            },
+        )
+        .unwrap();
+        (grid, voxels, vol)
+    }
+
+    #[test]
+    fn finest_level_hits_equal_the_in_core_scene() {
+        let dims = [31, 23, 17];
+        let (grid, voxels, vol) = setup(dims, 4, u64::MAX);
+        assert!(vol.level_count() >= 3);
+        let isos = [4.0f32, 6.5];
+        vol.set_isovalues(&isos);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert_eq!(vol.error(), None);
+        assert_eq!(vol.loaded_levels(), vol.level_count());
+        let ooc = vol.scene(Intersector::Exact);
+        assert_eq!(ooc.level(), vol.level_count() - 1);
+        let incore = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        assert_eq!(ooc.world_bounds(), incore.world_bounds());
+        let mut hits = 0;
+        for r in rays(incore.world_bounds(), 3000) {
+            let a = incore.first_hit(&r, 0.0, f32::INFINITY, &isos, &mut NoStats);
+            let b = ooc.first_hit(&r, 0.0, f32::INFINITY, &isos, &mut NoStats);
+            assert_eq!(a, b, "{r:?}");
+            hits += usize::from(a.is_some());
+        }
+        assert!(hits > 500, "{hits}");
+        assert!(vol.resident_bytes() > 0);
+    }
+
+    #[test]
+    fn coarse_levels_render_at_once_and_refine() {
+        let dims = [31, 23, 17];
+        let (grid, voxels, vol) = setup(dims, 4, u64::MAX);
+        // Before any isovalue: only the top treelet, and it already renders the blobs.
+        let coarse = vol.scene(Intersector::Exact);
+        assert_eq!(coarse.level(), 0);
+        let bounds = coarse.world_bounds();
+        let incore = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        let all = rays(bounds, 2000);
+        let count = |s: &dyn Fn(&Ray) -> Option<Hit>| all.iter().filter(|r| s(r).is_some()).count();
+        let mut n_coarse = 0;
+        for c in [4.0f32, 8.0, 12.0, 16.0] {
+            let iso = [c];
+            n_coarse += count(&|r| coarse.first_hit(r, 0.0, f32::INFINITY, &iso, &mut NoStats));
+        }
+        assert!(n_coarse > 0, "the top treelet renders on its own");
+        let iso = [5.0f32];
+        let n_fine = count(&|r| incore.first_hit(r, 0.0, f32::INFINITY, &iso, &mut NoStats));
+        assert!(n_fine > 0);
+        vol.set_isovalues(&iso);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert_eq!(vol.loaded_levels(), vol.level_count());
+        let fine = vol.scene(Intersector::Exact);
+        let n_ooc = count(&|r| fine.first_hit(r, 0.0, f32::INFINITY, &iso, &mut NoStats));
+        assert_eq!(n_ooc, n_fine);
+        // An isovalue in the same quantized bucket keeps everything; another reloads
+        // and evicts what it does not need.
+        let before = vol.resident_bytes();
+        vol.set_isovalues(&[5.0]);
+        assert!(vol.is_finished());
+        vol.set_isovalues(&[1.0]);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert_eq!(vol.loaded_levels(), vol.level_count());
+        assert_ne!(vol.resident_bytes(), before);
+    }
+
+    #[test]
+    fn budget_stops_at_a_coarser_level_and_damage_is_reported() {
+        let dims = [31, 23, 17];
+        let (_, _, vol) = setup(dims, 4, 1);
+        vol.set_isovalues(&[5.0]);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert!(vol.budget_limited());
+        assert_eq!(vol.loaded_levels(), 1);
+
+        let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+        let voxels = blobs(dims);
+        let layout = TreeletLayout::new(dims.map(|d| d as u64), 4).unwrap();
+        let mut store = MemoryStorage::new();
+        build_treelets(&grid, &voxels, layout.clone(), &mut store, &mut |_, _| {}).unwrap();
+        // Damage every treelet of the finest level.
+        let last = layout.level_count() - 1;
+        for i in 0..layout.level(last).treelet_count() {
+            store.record_mut(last, i).unwrap()[3] ^= 1;
+        }
+        let vol = OocVolume::<f32>::open(Arc::new(store), OocOptions::default()).unwrap();
+        vol.set_isovalues(&[5.0]);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        let e = vol.error().expect("damaged treelet reported");
+        assert!(e.to_string().contains("level"), "{e}");
+        assert!(vol.loaded_levels() < vol.level_count());
+        // Wrong type: an error, not garbage.
+        let mut store = MemoryStorage::new();
+        build_treelets(&grid, &voxels, layout, &mut store, &mut |_, _| {}).unwrap();
+        assert!(OocVolume::<u8>::open(Arc::new(store), OocOptions::default()).is_err());
+    }
+}
