@@ -25,6 +25,7 @@ pub mod mesh;
 pub mod nrrd;
 pub mod raw;
 pub mod series;
+pub mod treelet;
 
 pub use error::FormatError;
 

@@ -1,0 +1,847 @@
+//! The `.isot` treelet file (thesis seed 004 §7.8.1): an out-of-core volume cut into
+//! treelets by [`volume_core::ooc::build_treelets`], stored in 4 KiB pages with a CRC32 per
+//! page so that a truncated or corrupted file is an error, never a picture of garbage.
+//! The layout is specified in `docs/treelet-format.md`; in short:
+//!
+//! - header (page-aligned, padded): magic, version, page size, voxel type, dims, treelet
+//!   height, quantizer, grid geometry, level table, page count, CRC table offset, and a
+//!   CRC32 of the header itself;
+//! - data pages: each treelet level in turn (coarsest first), starting on a page boundary,
+//!   treelets in index order in fixed-size *slots* (`u32` length + the record); several
+//!   slots per page when they fit, otherwise each slot takes whole pages. A treelet's
+//!   position is arithmetic on its id (64-bit);
+//! - the CRC32 of every data page.
+//!
+//! [`write_isot`] builds into a temporary file next to the output and renames it when
+//! complete (the input is never touched). [`IsotFile`] memory-maps a file, checks the
+//! header, its CRC and the file length at open, and each page's CRC when a treelet on it is
+//! fetched ([`IsotFile::verify`] checks them all).
+
+use std::fs::File;
+use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::DAffine3;
+use memmap2::Mmap;
+use volume_core::ooc::{
+    BuildReport, OocError, OocMeta, Quantizer, TreeletLayout, TreeletSink, TreeletStorage,
+    build_treelets,
+};
+use volume_core::volume::{AxisCoords, Grid};
+use volume_core::{RectilinearVolume, Voxel, VoxelData, VoxelType};
+
+use crate::FormatError;
+
+/// File magic: "ISOT", then bytes that break text-mode transfers (as PNG does).
+pub const MAGIC: [u8; 8] = *b"ISOT\r\n\x1a\n";
+pub const VERSION: u32 = 1;
+pub const PAGE: u64 = 4096;
+const FIELD_HEADER: &str = "isot header";
+
+/// Where one treelet level lives in the data pages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LevelPlan {
+    /// First data page (0 = the first page after the header).
+    pub first_page: u64,
+    pub page_count: u64,
+    /// Bytes per slot: `u32` record length + the largest record of the level.
+    pub slot_bytes: u64,
+    /// Slots per page, or 0 when a slot spans whole pages.
+    pub slots_per_page: u64,
+    pub treelet_count: u64,
+}
+
+impl LevelPlan {
+    /// Byte offset of slot `index` from the start of the data pages.
+    pub fn slot_offset(&self, index: u64) -> u64 {
+        match index.checked_div(self.slots_per_page) {
+            Some(page) => {
+                (self.first_page + page) * PAGE + (index % self.slots_per_page) * self.slot_bytes
+            }
+            None => (self.first_page + index * self.slot_bytes.div_ceil(PAGE)) * PAGE,
+        }
+    }
+}
+
+/// The page plan of every level of `meta`.
+pub fn plan_levels(meta: &OocMeta) -> Vec<LevelPlan> {
+    let mut page = 0;
+    (0..meta.layout.level_count())
+        .map(|l| {
+            let slot_bytes = 4 + meta.max_record_bytes(l);
+            let treelet_count = meta.layout.level(l).treelet_count();
+            let slots_per_page = if slot_bytes <= PAGE {
+                PAGE / slot_bytes
+            } else {
+                0
+            };
+            let page_count = if slots_per_page > 0 {
+                treelet_count.div_ceil(slots_per_page)
+            } else {
+                treelet_count * slot_bytes.div_ceil(PAGE)
+            };
+            let p = LevelPlan {
+                first_page: page,
+                page_count,
+                slot_bytes,
+                slots_per_page,
+                treelet_count,
+            };
+            page += page_count;
+            p
+        })
+        .collect()
+}
+
+fn encode_header(meta: &OocMeta, plans: &[LevelPlan], data_pages: u64, crc_offset: u64) -> Vec<u8> {
+    let mut h = Vec::new();
+    h.extend_from_slice(&MAGIC);
+    h.extend_from_slice(&VERSION.to_le_bytes());
+    h.extend_from_slice(&(PAGE as u32).to_le_bytes());
+    h.extend_from_slice(&0u64.to_le_bytes()); // header length, patched below
+    let mut name = [0u8; 8];
+    let n = meta.voxel_type.name().as_bytes();
+    name[..n.len()].copy_from_slice(n);
+    h.extend_from_slice(&name);
+    for d in meta.layout.dims() {
+        h.extend_from_slice(&d.to_le_bytes());
+    }
+    h.extend_from_slice(&meta.layout.treelet_height().to_le_bytes());
+    h.extend_from_slice(&meta.quantizer.bits.to_le_bytes());
+    h.extend_from_slice(&meta.quantizer.lo.to_le_bytes());
+    h.extend_from_slice(&meta.quantizer.hi.to_le_bytes());
+    for axis in meta.grid.axes() {
+        match axis {
+            AxisCoords::Uniform { origin, spacing } => {
+                h.push(0);
+                h.extend_from_slice(&origin.to_le_bytes());
+                h.extend_from_slice(&spacing.to_le_bytes());
+            }
+            AxisCoords::Explicit(c) => {
+                h.push(1);
+                for x in c.iter() {
+                    h.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+        }
+    }
+    match meta.grid.world_from_grid() {
+        None => h.push(0),
+        Some(w) => {
+            h.push(1);
+            for x in w.to_cols_array() {
+                h.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+    }
+    h.extend_from_slice(&(plans.len() as u32).to_le_bytes());
+    for p in plans {
+        for x in [
+            p.first_page,
+            p.page_count,
+            p.slot_bytes,
+            p.slots_per_page,
+            p.treelet_count,
+        ] {
+            h.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    h.extend_from_slice(&data_pages.to_le_bytes());
+    h.extend_from_slice(&crc_offset.to_le_bytes());
+    let len = (h.len() + 4) as u64;
+    h[16..24].copy_from_slice(&len.to_le_bytes());
+    let crc = crc32fast::hash(&h);
+    h.extend_from_slice(&crc.to_le_bytes());
+    h
+}
+
+/// Reads little-endian fields, naming the field on a short read.
+struct Cursor<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize, field: &str) -> Result<&'a [u8], FormatError> {
+        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len());
+        let Some(end) = end else {
+            return Err(bad(
+                self.path,
+                field,
+                &format!("header ends at byte {} before this field", self.bytes.len()),
+            ));
+        };
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u8(&mut self, f: &str) -> Result<u8, FormatError> {
+        Ok(self.take(1, f)?[0])
+    }
+    fn u32(&mut self, f: &str) -> Result<u32, FormatError> {
+        Ok(u32::from_le_bytes(
+            self.take(4, f)?.try_into().expect("4 bytes"),
+        ))
+    }
+    fn u64(&mut self, f: &str) -> Result<u64, FormatError> {
+        Ok(u64::from_le_bytes(
+            self.take(8, f)?.try_into().expect("8 bytes"),
+        ))
+    }
+    fn f64(&mut self, f: &str) -> Result<f64, FormatError> {
+        Ok(f64::from_le_bytes(
+            self.take(8, f)?.try_into().expect("8 bytes"),
+        ))
+    }
+}
+
+fn bad(path: &Path, field: &str, reason: &str) -> FormatError {
+    FormatError::BadValue {
+        path: path.to_path_buf(),
+        line: 0,
+        field: format!("{FIELD_HEADER}: {field}"),
+        reason: reason.to_string(),
+    }
+}
+
+/// An open `.isot` file: a [`TreeletStorage`] over a read-only memory map.
+pub struct IsotFile {
+    path: PathBuf,
+    map: Arc<Mmap>,
+    meta: OocMeta,
+    plans: Vec<LevelPlan>,
+    data_offset: u64,
+    data_pages: u64,
+    crc_offset: u64,
+}
+
+impl std::fmt::Debug for IsotFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("IsotFile")
+            .field("path", &self.path)
+            .field("dims", &self.meta.layout.dims())
+            .field("levels", &self.plans.len())
+            .finish_non_exhaustive()
+    }
+}
+
+/// True if `path` starts with the `.isot` magic.
+pub fn is_isot(path: &Path) -> bool {
+    let mut m = [0u8; 8];
+    File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut m))
+        .is_ok()
+        && m == MAGIC
+}
+
+impl IsotFile {
+    /// Opens and checks `path`: magic, version, header CRC, geometry, the level table
+    /// against the layout recomputed from dims and height, and the exact file length.
+    pub fn open(path: &Path) -> Result<Self, FormatError> {
+        let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+        let len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
+        if len < 24 {
+            return Err(FormatError::TooShort {
+                path: path.to_path_buf(),
+                offset: 0,
+                needed: 24,
+                available: len,
+            });
+        }
+        let map = crate::raw::map_file(path, &file)?;
+        let bytes: &[u8] = &map;
+        if bytes[..8] != MAGIC {
+            return Err(FormatError::UnknownFormat {
+                path: path.to_path_buf(),
+                reason: "not an .isot treelet file (bad magic)".into(),
+            });
+        }
+        let mut c = Cursor { path, bytes, at: 8 };
+        let version = c.u32("version")?;
+        if version != VERSION {
+            return Err(bad(
+                path,
+                "version",
+                &format!("version {version}, this reader knows {VERSION}"),
+            ));
+        }
+        let page = c.u32("page size")?;
+        if u64::from(page) != PAGE {
+            return Err(bad(path, "page size", &format!("{page}, expected {PAGE}")));
+        }
+        let header_len = c.u64("header length")?;
+        if header_len > len || header_len < 28 {
+            return Err(FormatError::TooShort {
+                path: path.to_path_buf(),
+                offset: 0,
+                needed: header_len,
+                available: len,
+            });
+        }
+        let header = &bytes[..header_len as usize];
+        let stored_crc = u32::from_le_bytes(header[header.len() - 4..].try_into().expect("4"));
+        if crc32fast::hash(&header[..header.len() - 4]) != stored_crc {
+            return Err(FormatError::Decode {
+                path: path.to_path_buf(),
+                encoding: "isot",
+                offset: 0,
+                reason: "header checksum mismatch: the file is corrupted".into(),
+            });
+        }
+        let mut c = Cursor {
+            path,
+            bytes: &header[..header.len() - 4],
+            at: 24,
+        };
+        let name = c.take(8, "voxel type")?;
+        let name = std::str::from_utf8(name)
+            .ok()
+            .map(|s| s.trim_end_matches('\0'))
+            .and_then(VoxelType::from_name)
+            .ok_or_else(|| bad(path, "voxel type", &format!("unknown type {name:?}")))?;
+        let dims = [c.u64("dims")?, c.u64("dims")?, c.u64("dims")?];
+        let height = c.u32("treelet height")?;
+        let layout = TreeletLayout::new(dims, height)
+            .map_err(|e| bad(path, "dims/height", &e.to_string()))?;
+        let bits = c.u32("quantizer bits")?;
+        let lo = c.f64("quantizer lo")?;
+        let hi = c.f64("quantizer hi")?;
+        let quantizer = Quantizer::for_type(name, lo, hi);
+        if quantizer.bits != bits || quantizer.lo != lo || quantizer.hi != hi {
+            return Err(bad(
+                path,
+                "quantizer",
+                &format!(
+                    "{bits} bits over [{lo}, {hi}] is not valid for {}",
+                    name.name()
+                ),
+            ));
+        }
+        let mut axes = Vec::new();
+        for &n_samples in &dims {
+            match c.u8("axis kind")? {
+                0 => axes.push(AxisCoords::Uniform {
+                    origin: c.f64("axis origin")?,
+                    spacing: c.f64("axis spacing")?,
+                }),
+                1 => {
+                    // The header length was checked against the file: dims are bounded.
+                    let n = n_samples as usize;
+                    if n.saturating_mul(8) > header.len() {
+                        return Err(bad(
+                            path,
+                            "axis coordinates",
+                            "more coordinates than header bytes",
+                        ));
+                    }
+                    let mut v = Vec::with_capacity(n);
+                    for _ in 0..n {
+                        v.push(c.f64("axis coordinates")?);
+                    }
+                    axes.push(AxisCoords::Explicit(v.into()));
+                }
+                k => return Err(bad(path, "axis kind", &format!("unknown kind {k}"))),
+            }
+        }
+        let world_from_grid = match c.u8("orientation flag")? {
+            0 => None,
+            1 => {
+                let mut m = [0.0; 12];
+                for x in &mut m {
+                    *x = c.f64("orientation")?;
+                }
+                Some(DAffine3::from_cols_array(&m))
+            }
+            k => return Err(bad(path, "orientation flag", &format!("{k}"))),
+        };
+        let axes: [AxisCoords; 3] = axes.try_into().expect("three axes");
+        let grid = Grid::new(dims.map(|d| d as usize), axes, world_from_grid)
+            .map_err(|e| FormatError::geometry(path, e))?;
+        let meta = OocMeta {
+            grid,
+            voxel_type: name,
+            layout,
+            quantizer,
+        };
+        let plans = plan_levels(&meta);
+        let n = c.u32("level count")? as usize;
+        if n != plans.len() {
+            return Err(bad(
+                path,
+                "level count",
+                &format!("{n}, the layout has {}", plans.len()),
+            ));
+        }
+        for (l, p) in plans.iter().enumerate() {
+            let stored = LevelPlan {
+                first_page: c.u64("level table")?,
+                page_count: c.u64("level table")?,
+                slot_bytes: c.u64("level table")?,
+                slots_per_page: c.u64("level table")?,
+                treelet_count: c.u64("level table")?,
+            };
+            if stored != *p {
+                return Err(bad(
+                    path,
+                    "level table",
+                    &format!("level {l}: {stored:?}, the layout gives {p:?}"),
+                ));
+            }
+        }
+        let data_pages = c.u64("data pages")?;
+        let crc_offset = c.u64("checksum table offset")?;
+        let data_offset = header_len.next_multiple_of(PAGE);
+        let expected_pages = plans.last().map_or(0, |p| p.first_page + p.page_count);
+        if data_pages != expected_pages || crc_offset != data_offset + data_pages * PAGE {
+            return Err(bad(
+                path,
+                "data pages",
+                "page count or checksum table offset disagrees with the level table",
+            ));
+        }
+        let total = crc_offset + data_pages * 4;
+        if len < total {
+            return Err(FormatError::TooShort {
+                path: path.to_path_buf(),
+                offset: 0,
+                needed: total,
+                available: len,
+            });
+        }
+        if len > total {
+            return Err(FormatError::TooLong {
+                path: path.to_path_buf(),
+                offset: total,
+                expected: total,
+            });
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            map,
+            meta,
+            plans,
+            data_offset,
+            data_pages,
+            crc_offset,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn plans(&self) -> &[LevelPlan] {
+        &self.plans
+    }
+
+    fn check_page(&self, page: u64) -> Result<(), String> {
+        let start = (self.data_offset + page * PAGE) as usize;
+        let data = &self.map[start..start + PAGE as usize];
+        let at = (self.crc_offset + page * 4) as usize;
+        let stored = u32::from_le_bytes(self.map[at..at + 4].try_into().expect("4"));
+        if crc32fast::hash(data) == stored {
+            Ok(())
+        } else {
+            Err(format!(
+                "{}: data page {page} (byte offset {start}) checksum mismatch: the file is corrupted",
+                self.path.display()
+            ))
+        }
+    }
+
+    /// Checks the CRC of every data page.
+    pub fn verify(&self) -> Result<(), FormatError> {
+        for p in 0..self.data_pages {
+            self.check_page(p).map_err(|reason| FormatError::Decode {
+                path: self.path.clone(),
+                encoding: "isot",
+                offset: self.data_offset + p * PAGE,
+                reason,
+            })?;
+        }
+        Ok(())
+    }
+}
+
+impl TreeletStorage for IsotFile {
+    fn meta(&self) -> &OocMeta {
+        &self.meta
+    }
+
+    fn fetch(&self, level: usize, index: u64) -> Result<Vec<u8>, OocError> {
+        let p = self
+            .plans
+            .get(level)
+            .filter(|p| index < p.treelet_count)
+            .ok_or_else(|| {
+                OocError::Storage(format!(
+                    "{}: no treelet ({level}, {index})",
+                    self.path.display()
+                ))
+            })?;
+        let off = p.slot_offset(index);
+        let first = off / PAGE;
+        let last = (off + p.slot_bytes - 1) / PAGE;
+        for page in first..=last.min(self.data_pages - 1) {
+            self.check_page(page).map_err(OocError::Storage)?;
+        }
+        let at = (self.data_offset + off) as usize;
+        let len = u64::from(u32::from_le_bytes(
+            self.map[at..at + 4].try_into().expect("4"),
+        ));
+        if len + 4 > p.slot_bytes {
+            return Err(OocError::Storage(format!(
+                "{}: treelet ({level}, {index}) claims {len} bytes in a {}-byte slot",
+                self.path.display(),
+                p.slot_bytes
+            )));
+        }
+        Ok(self.map[at + 4..at + 4 + len as usize].to_vec())
+    }
+}
+
+/// The sink that writes pages sequentially per level, with their CRCs.
+struct PageWriter {
+    file: BufWriter<File>,
+    data_offset: u64,
+    plans: Vec<LevelPlan>,
+    crcs: Vec<u32>,
+    level: Option<usize>,
+    next_index: u64,
+    page: u64,
+    buf: Vec<u8>,
+    io_error: Option<std::io::Error>,
+    meta: Option<OocMeta>,
+}
+
+impl PageWriter {
+    fn io<T>(&mut self, r: std::io::Result<T>) -> Result<T, OocError> {
+        r.map_err(|e| {
+            let msg = e.to_string();
+            self.io_error = Some(e);
+            OocError::Storage(msg)
+        })
+    }
+
+    fn flush_page(&mut self) -> Result<(), OocError> {
+        self.buf.resize(PAGE as usize, 0);
+        self.crcs[self.page as usize] = crc32fast::hash(&self.buf);
+        let r = self.file.write_all(&self.buf);
+        self.io(r)?;
+        self.buf.clear();
+        self.page += 1;
+        Ok(())
+    }
+
+    fn end_level(&mut self) -> Result<(), OocError> {
+        if let Some(l) = self.level.take() {
+            if !self.buf.is_empty() {
+                self.flush_page()?;
+            }
+            let p = self.plans[l];
+            if self.next_index != p.treelet_count || self.page != p.first_page + p.page_count {
+                return Err(OocError::Storage(format!("level {l} incomplete")));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl TreeletSink for PageWriter {
+    fn begin(&mut self, meta: &OocMeta) -> Result<(), OocError> {
+        self.plans = plan_levels(meta);
+        let pages = self.plans.last().map_or(0, |p| p.first_page + p.page_count);
+        self.crcs = vec![0; pages as usize];
+        let header = encode_header(meta, &self.plans, pages, 0);
+        self.data_offset = (header.len() as u64).next_multiple_of(PAGE);
+        self.meta = Some(meta.clone());
+        Ok(())
+    }
+
+    fn put(&mut self, level: usize, index: u64, bytes: &[u8]) -> Result<(), OocError> {
+        if self.level != Some(level) {
+            self.end_level()?;
+            let p = *self
+                .plans
+                .get(level)
+                .ok_or_else(|| OocError::Storage("bad level".into()))?;
+            let pos = self.data_offset + p.first_page * PAGE;
+            let r = self.file.seek(SeekFrom::Start(pos));
+            self.io(r)?;
+            self.level = Some(level);
+            self.next_index = 0;
+            self.page = p.first_page;
+        }
+        let p = self.plans[level];
+        if index != self.next_index || bytes.len() as u64 + 4 > p.slot_bytes {
+            return Err(OocError::Storage(format!(
+                "treelet ({level}, {index}) out of order or larger than its slot"
+            )));
+        }
+        if p.slots_per_page > 0 {
+            let in_page = index % p.slots_per_page;
+            if in_page == 0 && !self.buf.is_empty() {
+                self.flush_page()?;
+            }
+            self.buf.resize((in_page * p.slot_bytes) as usize, 0);
+        }
+        self.buf
+            .extend_from_slice(&(bytes.len() as u32).to_le_bytes());
+        self.buf.extend_from_slice(bytes);
+        if p.slots_per_page == 0 {
+            self.buf
+                .resize((p.slot_bytes.div_ceil(PAGE) * PAGE) as usize, 0);
+        }
+        while self.buf.len() >= PAGE as usize {
+            let rest = self.buf.split_off(PAGE as usize);
+            self.flush_page()?;
+            self.buf = rest;
+        }
+        self.next_index += 1;
+        Ok(())
+    }
+}
+
+/// Builds the treelets of `voxels` on `grid` and writes them to `path` (via a temporary
+/// file in the same directory, renamed when complete). `progress(done, total)` counts
+/// treelets.
+pub fn write_isot<T: Voxel>(
+    path: &Path,
+    grid: &Grid,
+    voxels: &[T],
+    layout: TreeletLayout,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<BuildReport, FormatError> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let tmp = tempfile::Builder::new()
+        .prefix(".isot-")
+        .tempfile_in(dir)
+        .map_err(|e| FormatError::io(path, e))?;
+    let file = tmp.reopen().map_err(|e| FormatError::io(path, e))?;
+    let mut w = PageWriter {
+        file: BufWriter::with_capacity(1 << 20, file),
+        data_offset: 0,
+        plans: Vec::new(),
+        crcs: Vec::new(),
+        level: None,
+        next_index: 0,
+        page: 0,
+        buf: Vec::with_capacity(2 * PAGE as usize),
+        io_error: None,
+        meta: None,
+    };
+    let built = build_treelets(grid, voxels, layout, &mut w, progress).and_then(|r| {
+        w.end_level()?;
+        Ok(r)
+    });
+    let report = match built {
+        Ok(r) => r,
+        Err(e) => {
+            return Err(match w.io_error.take() {
+                Some(io) => FormatError::io(path, io),
+                None => FormatError::UnknownFormat {
+                    path: path.to_path_buf(),
+                    reason: format!("treelet build failed: {e}"),
+                },
+            });
+        }
+    };
+    let meta = w.meta.clone().expect("begin was called");
+    let pages = w.crcs.len() as u64;
+    let crc_offset = w.data_offset + pages * PAGE;
+    let header = encode_header(&meta, &w.plans, pages, crc_offset);
+    let mut table = Vec::with_capacity(w.crcs.len() * 4);
+    for c in &w.crcs {
+        table.extend_from_slice(&c.to_le_bytes());
+    }
+    let finish = (|| -> std::io::Result<()> {
+        w.file.seek(SeekFrom::Start(crc_offset))?;
+        w.file.write_all(&table)?;
+        w.file.seek(SeekFrom::Start(0))?;
+        w.file.write_all(&header)?;
+        w.file.flush()?;
+        w.file.get_ref().set_len(crc_offset + table.len() as u64)?;
+        w.file.get_ref().sync_all()
+    })();
+    finish.map_err(|e| FormatError::io(path, e))?;
+    drop(w);
+    tmp.persist(path)
+        .map_err(|e| FormatError::io(path, e.error))?;
+    Ok(report)
+}
+
+/// [`write_isot`] for a volume of any voxel type.
+pub fn write_isot_volume(
+    path: &Path,
+    volume: &RectilinearVolume,
+    layout: TreeletLayout,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<BuildReport, FormatError> {
+    let g = &volume.grid;
+    match &volume.data {
+        VoxelData::U8(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::I8(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::U16(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::I16(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::U32(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::I32(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::F32(b) => write_isot(path, g, b.as_slice(), layout, progress),
+        VoxelData::F64(b) => write_isot(path, g, b.as_slice(), layout, progress),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use volume_core::ooc::{MemoryStorage, TreeletRecord};
+
+    fn volume(dims: [usize; 3]) -> (Grid, Vec<u16>) {
+        let grid = Grid::uniform(dims, [1.0, -2.0, 0.5], [0.5, 1.0, 2.0]).unwrap();
+        let mut v = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    v.push(((i * 7 + j * 13 + k * 29) % 1000) as u16 + 100);
+                }
+            }
+        }
+        (grid, v)
+    }
+
+    fn write(dir: &Path, h: u32) -> (PathBuf, MemoryStorage) {
+        let dims = [37, 21, 15];
+        let (grid, v) = volume(dims);
+        let layout = TreeletLayout::new(dims.map(|d| d as u64), h).unwrap();
+        let path = dir.join("v.isot");
+        let report = write_isot(&path, &grid, &v, layout.clone(), &mut |_, _| {}).unwrap();
+        assert_eq!(report.treelets, layout.treelet_count());
+        let mut mem = MemoryStorage::new();
+        build_treelets(&grid, &v, layout, &mut mem, &mut |_, _| {}).unwrap();
+        (path, mem)
+    }
+
+    #[test]
+    fn round_trip_equals_the_in_memory_build() {
+        let dir = tempfile::tempdir().unwrap();
+        for h in [3, 9] {
+            let (path, mem) = write(dir.path(), h);
+            assert!(is_isot(&path));
+            let f = IsotFile::open(&path).unwrap();
+            f.verify().unwrap();
+            assert_eq!(f.meta(), mem.meta());
+            let len = std::fs::metadata(&path).unwrap().len();
+            assert_eq!(len, f.crc_offset + 4 * f.data_pages);
+            let mut slots_shared = false;
+            for (l, p) in f.plans().iter().enumerate() {
+                assert_eq!(p.first_page * PAGE % PAGE, 0);
+                slots_shared |= p.slots_per_page > 1;
+                for i in 0..p.treelet_count {
+                    let a = f.fetch(l, i).unwrap();
+                    assert_eq!(a, mem.fetch(l, i).unwrap(), "level {l} treelet {i}");
+                    TreeletRecord::<u16>::decode(f.meta(), l, i, &a).unwrap();
+                }
+            }
+            assert!(h == 9 || slots_shared, "small treelets share pages");
+            // No temporary files left behind.
+            let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+            assert_eq!(names.len(), 1);
+        }
+    }
+
+    #[test]
+    fn truncated_and_corrupted_files_are_rejected() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, _) = write(dir.path(), 3);
+        let bytes = std::fs::read(&path).unwrap();
+        // Truncated anywhere: open fails with a clear error.
+        for cut in [0, 10, 100, bytes.len() / 2, bytes.len() - 1] {
+            let p = dir.path().join("cut.isot");
+            std::fs::write(&p, &bytes[..cut]).unwrap();
+            let e = IsotFile::open(&p).unwrap_err();
+            let s = e.to_string();
+            assert!(s.contains("cut.isot"), "{s}");
+            assert!(
+                s.contains("bytes") || s.contains("header") || s.contains("magic"),
+                "{s}"
+            );
+        }
+        // A flipped byte in the header: header checksum.
+        let p = dir.path().join("flip.isot");
+        let mut b = bytes.clone();
+        b[60] ^= 0x10;
+        std::fs::write(&p, &b).unwrap();
+        let e = IsotFile::open(&p).unwrap_err().to_string();
+        assert!(e.contains("checksum") || e.contains("header"), "{e}");
+        // A flipped byte in every data page, one at a time (sampled): verify and the
+        // fetch of a treelet on that page both fail.
+        let f = IsotFile::open(&path).unwrap();
+        let (data_offset, pages) = (f.data_offset, f.data_pages);
+        drop(f);
+        for page in (0..pages).step_by((pages as usize / 7).max(1)) {
+            let mut b = bytes.clone();
+            let at = (data_offset + page * PAGE + 123) as usize;
+            b[at] ^= 0x01;
+            std::fs::write(&p, &b).unwrap();
+            let f = IsotFile::open(&p).unwrap();
+            let e = f.verify().unwrap_err().to_string();
+            assert!(
+                e.contains("checksum mismatch") && e.contains("flip.isot"),
+                "{e}"
+            );
+            let mut failed = 0;
+            for (l, plan) in f.plans().iter().enumerate() {
+                for i in 0..plan.treelet_count {
+                    if let Err(e) = f.fetch(l, i) {
+                        assert!(e.to_string().contains(&format!("page {page}")), "{e}");
+                        failed += 1;
+                    }
+                }
+            }
+            assert!(failed > 0, "page {page}");
+        }
+        // Extra bytes at the end are rejected too.
+        let mut b = bytes.clone();
+        b.push(0);
+        std::fs::write(&p, &b).unwrap();
+        assert!(IsotFile::open(&p).is_err());
+        // Not an isot file.
+        std::fs::write(&p, b"NRRD0004\n and some more bytes to pass").unwrap();
+        assert!(!is_isot(&p));
+        assert!(
+            IsotFile::open(&p)
+                .unwrap_err()
+                .to_string()
+                .contains("magic")
+        );
+    }
+
+    #[test]
+    fn explicit_axes_and_orientation_survive() {
+        let dims = [5usize, 4, 3];
+        let axes = [
+            AxisCoords::Explicit(vec![0.0, 1.0, 3.0, 3.5, 9.0].into()),
+            AxisCoords::Uniform {
+                origin: 2.0,
+                spacing: 0.25,
+            },
+            AxisCoords::Explicit(vec![-1.0, 0.0, 4.0].into()),
+        ];
+        let w = DAffine3::from_cols_array(&[
+            0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 2.0, 5.0, 6.0, 7.0,
+        ]);
+        let grid = Grid::new(dims, axes, Some(w)).unwrap();
+        let v: Vec<f32> = (0..60).map(|i| i as f32 * 0.5 - 3.0).collect();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("e.isot");
+        let layout = TreeletLayout::new([5, 4, 3], 2).unwrap();
+        write_isot(&path, &grid, &v, layout, &mut |_, _| {}).unwrap();
+        let f = IsotFile::open(&path).unwrap();
+        assert_eq!(f.meta().grid, grid);
+        assert_eq!(f.meta().voxel_type, VoxelType::F32);
+    }
+}
