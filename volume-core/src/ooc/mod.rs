@@ -26,7 +26,7 @@ pub mod treelet;
 pub use build::{BuildReport, build_treelets};
 pub use layout::{LevelShape, TreeletLayout, TreeletLevel};
 pub use quantize::{CodeQuery, Quantizer};
-pub use scene::{OocOptions, OocScene, OocVolume};
+pub use scene::{AnyOocVolume, OocOptions, OocScene, OocVolume};
 pub use treelet::{MemoryStorage, OocMeta, TreeletRecord, TreeletSink, TreeletStorage};
 
 use thiserror::Error;

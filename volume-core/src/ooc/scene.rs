@@ -752,6 +752,97 @@ impl<T: Voxel> IsoScene for OocScene<T> {
     }
 }
 
+/// An [`OocVolume`] of whichever voxel type the storage holds.
+#[derive(Debug)]
+pub enum AnyOocVolume {
+    U8(OocVolume<u8>),
+    I8(OocVolume<i8>),
+    U16(OocVolume<u16>),
+    I16(OocVolume<i16>),
+    U32(OocVolume<u32>),
+    I32(OocVolume<i32>),
+    F32(OocVolume<f32>),
+    F64(OocVolume<f64>),
+}
+
+macro_rules! dispatch_ooc {
+    ($v:expr, $s:ident => $body:expr) => {
+        match $v {
+            AnyOocVolume::U8($s) => $body,
+            AnyOocVolume::I8($s) => $body,
+            AnyOocVolume::U16($s) => $body,
+            AnyOocVolume::I16($s) => $body,
+            AnyOocVolume::U32($s) => $body,
+            AnyOocVolume::I32($s) => $body,
+            AnyOocVolume::F32($s) => $body,
+            AnyOocVolume::F64($s) => $body,
+        }
+    };
+}
+
+impl AnyOocVolume {
+    /// Opens `storage` with the voxel type it records.
+    pub fn open(storage: Arc<dyn TreeletStorage>, options: OocOptions) -> Result<Self, OocError> {
+        use crate::voxel::VoxelType as V;
+        Ok(match storage.meta().voxel_type {
+            V::U8 => Self::U8(OocVolume::open(storage, options)?),
+            V::I8 => Self::I8(OocVolume::open(storage, options)?),
+            V::U16 => Self::U16(OocVolume::open(storage, options)?),
+            V::I16 => Self::I16(OocVolume::open(storage, options)?),
+            V::U32 => Self::U32(OocVolume::open(storage, options)?),
+            V::I32 => Self::I32(OocVolume::open(storage, options)?),
+            V::F32 => Self::F32(OocVolume::open(storage, options)?),
+            V::F64 => Self::F64(OocVolume::open(storage, options)?),
+        })
+    }
+
+    pub fn meta(&self) -> &OocMeta {
+        dispatch_ooc!(self, v => v.meta())
+    }
+
+    pub fn set_isovalues(&self, isovalues: &[f32]) {
+        dispatch_ooc!(self, v => v.set_isovalues(isovalues));
+    }
+
+    pub fn loaded_levels(&self) -> usize {
+        dispatch_ooc!(self, v => v.loaded_levels())
+    }
+
+    pub fn level_count(&self) -> usize {
+        dispatch_ooc!(self, v => v.level_count())
+    }
+
+    pub fn resident_bytes(&self) -> u64 {
+        dispatch_ooc!(self, v => v.resident_bytes())
+    }
+
+    pub fn is_finished(&self) -> bool {
+        dispatch_ooc!(self, v => v.is_finished())
+    }
+
+    pub fn budget_limited(&self) -> bool {
+        dispatch_ooc!(self, v => v.budget_limited())
+    }
+
+    pub fn error(&self) -> Option<OocError> {
+        dispatch_ooc!(self, v => v.error())
+    }
+
+    pub fn wait_until_finished(&self, timeout: Duration) -> bool {
+        dispatch_ooc!(self, v => v.wait_until_finished(timeout))
+    }
+
+    /// Hands this frame's typed [`OocScene`] to `visitor` (monomorphized rendering, as
+    /// [`crate::grid_scene::AnyGridScene::visit`]).
+    pub fn visit_scene<V: crate::grid_scene::SceneVisitor>(
+        &self,
+        intersector: Intersector,
+        visitor: V,
+    ) -> V::Output {
+        dispatch_ooc!(self, v => visitor.visit(&v.scene(intersector)))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
