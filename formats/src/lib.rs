@@ -11,6 +11,8 @@
 //!   NRRD writer (raw, gzip).
 //! - [`series`]: time series from numbered files (`vol_%03d.nrrd`, `vol_*.nrrd`) and 4D NRRD,
 //!   loaded lazily through [`volume_core::series::StepLoader`].
+//! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
+//!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
 //! - [`open`]: picks the reader from the name and contents.
 //!
 //! The NRRD header parser has a `cargo fuzz` target in `formats/fuzz` (see `formats/README.md`);

@@ -11,6 +11,8 @@
 //! - [`series`]: time series whose steps load lazily through a [`series::StepLoader`].
 //! - [`stats`]: value range (NaN ignored) and histograms, computed in parallel.
 //! - [`math`]: bounds, rays, intervals and floating-point error bounds.
+//! - [`ooc`]: out-of-core treelets (thesis §7.7–7.8): layout, quantized merged min/max tree
+//!   and LOD build, loader thread, and the out-of-core `IsoScene`.
 //!
 //! Dependency rule: nothing here knows about files, GUIs, command lines or `anyhow`
 //! (see `docs/architecture.md`).
