@@ -114,8 +114,8 @@ pub struct IsoPoly {
 }
 
 impl IsoPoly {
-    /// Unit normal of the polygon plane, oriented towards increasing value (`None` if
-    /// degenerate). `up` is a vector from a below-vertex to an above-vertex of the tet.
+    /// Unit normal of the polygon plane (`None` if degenerate). Its sign follows the vertex
+    /// order; [`crate::tet::TetScene`] orients hit normals towards increasing value.
     pub fn normal(&self) -> Option<Vec3> {
         let n = if self.count == 4 {
             (self.v[2] - self.v[0]).cross(self.v[3] - self.v[1])
