@@ -8,6 +8,8 @@
 //!   analytic isosurfaces ([`analytic::Sphere`] has a ray intersection for test truth).
 //! - [`phantom`]: a CT-like head in Hounsfield units, `i16`, anisotropic spacing.
 //! - [`blobs`]: moving and merging Gaussian blobs, a 20-step time series (lazy or eager).
+//! - [`tets`]: tetrahedral meshes of a ball, a shell and a torus (a structured grid split
+//!   into tets) with analytic point fields and a moving Gaussian series.
 //! - [`sampling`]: the parallel field sampler and the [`ValueMap`] that stores a field's
 //!   natural values in any voxel type.
 //!
@@ -20,6 +22,7 @@ pub mod blobs;
 pub mod marschner_lobb;
 pub mod phantom;
 pub mod sampling;
+pub mod tets;
 
 pub use sampling::ValueMap;
 
@@ -36,6 +39,9 @@ pub enum GenerateError {
     OutOfMemory { bytes: usize },
     #[error(transparent)]
     Volume(#[from] VolumeError),
+    /// A generated tetrahedral mesh failed validation ([`tets`]).
+    #[error(transparent)]
+    Mesh(#[from] volume_core::tet::TetError),
 }
 
 /// The named generators of `isoscope generate`.

@@ -316,3 +316,29 @@ fn format_by_extension() {
     let e = mesh::read_mesh(Path::new("x.nrrd")).unwrap_err();
     assert!(matches!(e, mesh::MeshError::UnknownFormat { .. }));
 }
+
+/// Writers: a mesh written as .vtu and as legacy ASCII/binary reads back identically
+/// (including awkward field names and non-round values).
+#[test]
+fn writers_round_trip() {
+    use volume_core::tet::{PointField, TetMesh};
+    let src = mesh::read_mesh(&data("mixed_v51_binary.vtk")).unwrap().mesh;
+    let mut fields = src.fields.clone();
+    fields.push(PointField::new(
+        "odd name <&> \"x\"",
+        (0..src.points.len()).map(|i| (i as f32).sin() * 1e-3 + 1.0 / 3.0).collect(),
+    ));
+    let points: Vec<[f32; 3]> = src.points.iter().map(|p| [p[0] + 0.1, p[1] / 3.0, -p[2]]).collect();
+    let m = TetMesh::new(points, src.tets.clone(), fields).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.vtu");
+    mesh::write_vtu(&a, &m).unwrap();
+    assert_eq!(mesh::read_mesh(&a).unwrap().mesh, m);
+    for (name, enc) in [("b.vtk", mesh::LegacyEncoding::Ascii), ("c.vtk", mesh::LegacyEncoding::Binary)] {
+        let p = dir.path().join(name);
+        mesh::write_vtk_legacy(&p, &m, enc).unwrap();
+        let back = mesh::read_mesh(&p).unwrap();
+        assert_eq!(back.mesh, m, "{name}");
+        assert_eq!(back.skipped.total(), 0);
+    }
+}

@@ -332,6 +332,12 @@ impl RawMesh {
             let values = a.values.iter().map(|&x| x as f32).collect();
             fields.push(PointField::new(a.name, values));
         }
+        if tets.is_empty() {
+            return Err(MeshError::Mesh {
+                path: path.to_path_buf(),
+                source: TetError::Empty,
+            });
+        }
         let points = volume_core::tet::points_from_f64(&self.points);
         let mesh = TetMesh::new(points, tets, fields).map_err(|source| MeshError::Mesh {
             path: path.to_path_buf(),

@@ -211,10 +211,13 @@ pub fn read_pvd(path: &Path) -> Result<MeshSeries, MeshError> {
                     saw_collection = true;
                 } else if name.as_ref() == b"DataSet" {
                     let get = |k: &str| {
-                        e.try_get_attribute(k)
-                            .ok()
-                            .flatten()
-                            .map(|a| String::from_utf8_lossy(&a.value).into_owned())
+                        e.try_get_attribute(k).ok().flatten().map(|a| {
+                            a.normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                                .map_or_else(
+                                    |_| String::from_utf8_lossy(&a.value).into_owned(),
+                                    std::borrow::Cow::into_owned,
+                                )
+                        })
                     };
                     let file = get("file")
                         .ok_or_else(|| perr(pos, "DataSet without a file attribute".into()))?;

@@ -170,13 +170,17 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<RawMesh, MeshError> {
                 let mut attrs = Vec::new();
                 for a in e.attributes() {
                     let a = a.map_err(|err| perr(pos, format!("bad attribute: {err}")))?;
-                    attrs.push((a.key.as_ref().to_vec(), a.value.into_owned()));
+                    let value = match a.normalized_value(quick_xml::XmlVersion::Implicit1_0) {
+                        Ok(v) => v.into_owned(),
+                        Err(_) => attr_str(&a.value),
+                    };
+                    attrs.push((a.key.as_ref().to_vec(), value));
                 }
                 let get = |k: &[u8]| {
                     attrs
                         .iter()
                         .find(|(key, _)| key == k)
-                        .map(|(_, v)| attr_str(v))
+                        .map(|(_, v)| v.clone())
                 };
                 match name {
                     b"VTKFile" => {
