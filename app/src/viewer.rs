@@ -991,9 +991,11 @@ impl eframe::App for ViewerApp {
 
         egui::Panel::top("isoscope-menu").show(ui, |ui| self.menu_ui(ui));
         egui::Panel::bottom("isoscope-status").show(ui, |ui| self.status_ui(ui));
-        egui::Panel::bottom("isoscope-time").show(ui, |ui| {
-            panels::time_ui(ui, &mut self.state, self.data.as_ref(), &mut self.commands);
-        });
+        if self.data.as_ref().is_some_and(|d| d.step_count() > 1) {
+            egui::Panel::bottom("isoscope-time").show(ui, |ui| {
+                panels::time_ui(ui, &mut self.state, self.data.as_ref(), &mut self.commands);
+            });
+        }
         egui::Panel::left("isoscope-controls")
             .default_size(340.0)
             .size_range(240.0..=560.0).show(ui, |ui| self.side_ui(ui));

@@ -273,7 +273,7 @@ mod tests {
         assert_eq!(data.dims, [DEFAULT_SAMPLE_SIZE; 3]);
         assert_eq!(data.bounds.min, Vec3::splat(-1.0));
         assert!((data.bounds.max - Vec3::splat(1.0)).abs().max_element() < 1e-6);
-        let super::super::backend::DataKind::Volume(v) = &data.kind else {
+        let DataKind::Volume(v) = &data.kind else {
             panic!("a volume")
         };
         let h = 2.0 / (DEFAULT_SAMPLE_SIZE - 1) as f64;
