@@ -245,10 +245,10 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("ct_like_256x256x110_256sq");
     g.sample_size(10);
     g.bench_function("kd_single", |bn| {
-        bn.iter(|| frame(&scene, &rays, &[300.0], false))
+        bn.iter(|| frame(&scene, &rays, &[300.0], false));
     });
     g.bench_function("kd_packet", |bn| {
-        bn.iter(|| frame(&scene, &rays, &[300.0], true))
+        bn.iter(|| frame(&scene, &rays, &[300.0], true));
     });
     g.finish();
 }

@@ -319,14 +319,14 @@ pub fn normal_at<T: Voxel>(
     let uvw = uvw.as_dvec3();
     let mut grad = DVec3::ZERO;
     let mut corner_vals = [0.0f64; 8];
-    for c in 0..8 {
+    for (c, corner_val) in corner_vals.iter_mut().enumerate() {
         let v = [
             cell[0] + (c & 1),
             cell[1] + ((c >> 1) & 1),
             cell[2] + ((c >> 2) & 1),
         ];
         let f0 = value(v[0], v[1], v[2]);
-        corner_vals[c] = f0;
+        *corner_val = f0;
         let mut g = DVec3::ZERO;
         for a in 0..3 {
             let sample = |idx: usize| {

@@ -239,7 +239,9 @@ pub fn extreme_suite() -> Vec<Case> {
                 let dir = rng.vec(-1.0, 1.0).normalize_or(Vec3::X);
                 let side = dir.any_orthonormal_vector();
                 let side =
-                    (glam::Quat::from_axis_angle(dir, rng.range(0.0, 6.283)) * side).normalize();
+                    (glam::Quat::from_axis_angle(dir, rng.range(0.0, std::f32::consts::TAU))
+                        * side)
+                        .normalize();
                 let off = r + rng.range(-0.3, 0.3);
                 Ray::new(Vec3::splat(c) + side * off - dir * 15.0, dir)
             })

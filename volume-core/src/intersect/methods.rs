@@ -23,7 +23,7 @@ pub(crate) fn corner_diffs<T: Voxel>(corners: &[T; 8], iso: f32) -> ([f32; 8], f
     if !wide {
         let g = corners.map(|v| v.to_f32() - iso);
         let m = g.iter().fold(0.0f32, |m, x| m.max(x.abs()));
-        if m == 0.0 || (m >= LO && m <= HI) {
+        if m == 0.0 || (LO..=HI).contains(&m) {
             return (g, m);
         }
     }
@@ -300,12 +300,8 @@ impl CellIntersector for Exact {
         let tol = 64.0 * f32::EPSILON * gmax;
         let (ext, n) = extrema_f32(&k);
         let (mut s_prev, mut f_prev) = (0.0f32, f0);
-        for idx in 0..=n {
-            let (s, is_extremum) = if idx < n {
-                (ext[idx], true)
-            } else {
-                (1.0, false)
-            };
+        let ends = ext[..n].iter().map(|&e| (e, true));
+        for (s, is_extremum) in ends.chain(std::iter::once((1.0, false))) {
             let fs = eval(&k, s);
             if fs == 0.0 {
                 return Some(f64::from(s));
@@ -505,12 +501,8 @@ pub(crate) fn reference_first_root(k: &[f64; 4], tol: f64) -> Option<f64> {
         ext.swap(0, 1);
     }
     let (mut s_prev, mut f_prev) = (0.0f64, f0);
-    for idx in 0..=n {
-        let (s, is_extremum) = if idx < n {
-            (ext[idx], true)
-        } else {
-            (1.0, false)
-        };
+    let ends = ext[..n].iter().map(|&e| (e, true));
+    for (s, is_extremum) in ends.chain(std::iter::once((1.0, false))) {
         let fs = eval64(k, s);
         if fs == 0.0 {
             // A touching root at an extremum, or a root exactly at an end: but a sign

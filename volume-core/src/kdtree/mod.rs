@@ -243,8 +243,8 @@ impl<T: Voxel> KdTree<T> {
                 if j < lo[1] || j > hi[1] || k < lo[2] || k > hi[2] {
                     return;
                 }
-                for i in lo[0]..=hi[0] {
-                    out[i] = node_range_from_cells(voxels, dims, cells, lv.extent, [i, j, k]);
+                for (i, o) in out.iter_mut().enumerate().take(hi[0] + 1).skip(lo[0]) {
+                    *o = node_range_from_cells(voxels, dims, cells, lv.extent, [i, j, k]);
                 }
             });
         let (mut lo, mut hi) = (lo, hi);
@@ -266,7 +266,7 @@ impl<T: Voxel> KdTree<T> {
                     if j < lo[1] || j > hi[1] || k < lo[2] || k > hi[2] {
                         return;
                     }
-                    for i in lo[0]..=hi[0] {
+                    for (i, o) in out.iter_mut().enumerate().take(hi[0] + 1).skip(lo[0]) {
                         let mut c = [i, j, k];
                         c[a] *= 2;
                         let mut r = children[child_addr(&child, c)];
@@ -274,7 +274,7 @@ impl<T: Voxel> KdTree<T> {
                         if c[a] < child.count[a] {
                             r = union(r, children[child_addr(&child, c)]);
                         }
-                        out[i] = r;
+                        *o = r;
                     }
                 });
         }

@@ -66,7 +66,7 @@ impl<T: Voxel> KdTree<T> {
         out: &mut [Option<CellHit>],
     ) {
         let n = rays.len().min(PACKET_WIDTH);
-        for o in out[..n].iter_mut() {
+        for o in &mut out[..n] {
             *o = None;
         }
         if self.levels.is_empty() || isos.is_empty() || n == 0 {
