@@ -6,8 +6,9 @@ use clap::{Parser, Subcommand};
 pub mod bench;
 pub mod generate;
 pub mod info;
-pub mod open_args;
 pub mod npy;
+pub mod open_args;
+pub mod preprocess;
 pub mod render;
 
 /// Isoscope: exact, interactive isosurfaces of volume data by CPU ray tracing.
@@ -30,6 +31,9 @@ pub enum Command {
     Render(render::Args),
     /// Measure build time, memory and rays/s of the acceleration structures and intersectors.
     Bench(bench::Args),
+    /// Build the out-of-core treelet file (.isot) of a volume: LOD pyramid, merged min/max
+    /// tree, 4 KiB pages with checksums.
+    Preprocess(preprocess::Args),
 }
 
 /// Runs a subcommand.
@@ -39,5 +43,6 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Generate(a) => generate::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Preprocess(a) => preprocess::run(&a),
     }
 }

@@ -1,0 +1,157 @@
+//! `isoscope preprocess IN -o OUT.isot [--treelet-height 9] [--levels auto]`: builds the
+//! out-of-core treelet file (thesis seed 004 §7.8.1; format in `docs/treelet-format.md`).
+//!
+//! The input is opened like every other command (`formats::open`, memory-mapped) and never
+//! written; the output is written to a temporary name next to it and renamed when complete.
+//! A progress bar counts treelets; the summary reports input throughput.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, bail};
+use volume_core::ooc::TreeletLayout;
+
+use super::open_args::OpenArgs;
+use crate::progress::Progress;
+
+/// Arguments of `isoscope preprocess`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Input volume (.nrrd/.nhdr, or raw with the raw flags or a NAME.json sidecar).
+    pub input: PathBuf,
+    /// Output treelet file (.isot).
+    #[arg(short, long, value_name = "OUT.isot")]
+    pub output: PathBuf,
+    /// Node levels per treelet (the thesis found 9 best).
+    #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u32).range(1..=24))]
+    pub treelet_height: u32,
+    /// Number of LOD/treelet levels: `auto` (from --treelet-height) or a count, which
+    /// overrides the height.
+    #[arg(long, default_value = "auto", value_parser = parse_levels)]
+    pub levels: Levels,
+    #[command(flatten)]
+    pub open: OpenArgs,
+}
+
+/// `--levels`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Levels {
+    Auto,
+    Count(usize),
+}
+
+/// Parses `auto` or a positive level count.
+pub fn parse_levels(s: &str) -> Result<Levels, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(Levels::Auto);
+    }
+    match s.parse::<usize>() {
+        Ok(n) if (1..=64).contains(&n) => Ok(Levels::Count(n)),
+        _ => Err(format!(
+            "expected `auto` or a level count 1..=64, got `{s}`"
+        )),
+    }
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if same_file(&args.input, &args.output) {
+        bail!(
+            "{}: output would overwrite the input; choose another -o",
+            args.output.display()
+        );
+    }
+    let options = args.open.open_options()?;
+    let dataset = formats::open(&args.input, &options)
+        .with_context(|| format!("opening {}", args.input.display()))?;
+    if dataset.time_steps() > 1 {
+        eprintln!(
+            "note: {} has {} time steps; preprocessing the first",
+            args.input.display(),
+            dataset.time_steps()
+        );
+    }
+    let volume = dataset.first_volume();
+    let dims = volume.dims().map(|d| d as u64);
+    let layout = match args.levels {
+        Levels::Auto => TreeletLayout::new(dims, args.treelet_height),
+        Levels::Count(n) => TreeletLayout::with_levels(dims, n),
+    }
+    .with_context(|| format!("{}: cannot cut into treelets", args.input.display()))?;
+    let total = layout.treelet_count();
+    let levels = layout.level_count();
+    let height = layout.treelet_height();
+    let bar = Progress::bar(total, "preprocess: treelets");
+    let start = Instant::now();
+    let report =
+        formats::treelet::write_isot_volume(&args.output, volume, layout, &mut |done, _| {
+            bar.inc(done.saturating_sub(bar.position()));
+        })?;
+    bar.finish();
+    let secs = start.elapsed().as_secs_f64().max(1e-9);
+    let input_bytes = volume.data.size_bytes() as f64;
+    let out_bytes = std::fs::metadata(&args.output).map_or(0, |m| m.len());
+    println!(
+        "{}: {} treelets in {levels} levels (height {height}), {:.1} MB written, {:.2} s, {:.1} MB/s input",
+        args.output.display(),
+        report.treelets,
+        out_bytes as f64 / 1e6,
+        secs,
+        input_bytes / 1e6 / secs
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_parse() {
+        assert_eq!(parse_levels("auto"), Ok(Levels::Auto));
+        assert_eq!(parse_levels("AUTO"), Ok(Levels::Auto));
+        assert_eq!(parse_levels("3"), Ok(Levels::Count(3)));
+        assert!(parse_levels("0").is_err());
+        assert!(parse_levels("x").is_err());
+    }
+
+    #[test]
+    fn preprocess_writes_a_valid_file_and_refuses_to_overwrite_the_input() {
+        use volume_core::{Grid, RectilinearVolume};
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("in.nrrd");
+        let g = Grid::uniform([9, 8, 7], [0.0; 3], [1.0; 3]).unwrap();
+        let voxels: Vec<u8> = (0..9 * 8 * 7).map(|i| (i * 7 % 256) as u8).collect();
+        let v = RectilinearVolume::new(g, voxels.into()).unwrap();
+        formats::nrrd::write_nrrd(&input, &v, formats::nrrd::NrrdEncoding::Raw).unwrap();
+        let before = std::fs::read(&input).unwrap();
+        let output = dir.path().join("out.isot");
+        let args = Args {
+            input: input.clone(),
+            output: output.clone(),
+            treelet_height: 3,
+            levels: Levels::Auto,
+            open: OpenArgs::default(),
+        };
+        run(&args).unwrap();
+        let f = formats::treelet::IsotFile::open(&output).unwrap();
+        f.verify().unwrap();
+        assert_eq!(std::fs::read(&input).unwrap(), before);
+        let same = Args {
+            input: input.clone(),
+            output: input.clone(),
+            treelet_height: 3,
+            levels: Levels::Count(2),
+            open: OpenArgs::default(),
+        };
+        let e = run(&same).unwrap_err().to_string();
+        assert!(e.contains("overwrite the input"), "{e}");
+        assert_eq!(std::fs::read(&input).unwrap(), before);
+    }
+}
