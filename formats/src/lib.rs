@@ -90,6 +90,8 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> 
 }
 
 /// Opens one file (no pattern expansion).
+// `name` is lower-cased first, so the extension comparisons are case-insensitive.
+#[allow(clippy::case_sensitive_file_extension_comparisons)]
 pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> {
     let name = path
         .file_name()

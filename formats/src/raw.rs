@@ -294,11 +294,15 @@ fn typed<T: Voxel>(bytes: &[u8], swap: bool) -> Vec<T> {
 pub(crate) fn swap_in_place<T: Voxel>(voxels: &mut [T]) {
     const CHUNK: usize = 1 << 16;
     if voxels.len() > CHUNK {
-        voxels
-            .par_chunks_mut(CHUNK)
-            .for_each(|c| c.iter_mut().for_each(|v| *v = v.swap_bytes()));
+        voxels.par_chunks_mut(CHUNK).for_each(|c| {
+            for v in c {
+                *v = v.swap_bytes();
+            }
+        });
     } else {
-        voxels.iter_mut().for_each(|v| *v = v.swap_bytes());
+        for v in voxels {
+            *v = v.swap_bytes();
+        }
     }
 }
 

@@ -128,7 +128,7 @@ impl DataPlan {
             let after_lines = self.skip_lines(path, &mut reader, file_len)?;
             after_lines.saturating_add(self.byte_skip as u64)
         };
-        let end = data_start.checked_add(need).unwrap_or(u64::MAX);
+        let end = data_start.saturating_add(need);
         if end > file_len {
             return Err(FormatError::TooShort {
                 path: path.clone(),

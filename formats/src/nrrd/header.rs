@@ -249,16 +249,23 @@ fn parse_space(s: &str) -> Option<(&'static str, usize)> {
     })
 }
 
-/// Kind names and the axis size they imply (`None`: any size).
+/// Kind names and the axis size they imply: `None` for an unknown kind, `Some(None)` for a
+/// kind of any size.
+#[allow(clippy::option_option)]
 fn kind_size(kind: &str) -> Option<Option<usize>> {
     Some(match kind {
         "domain" | "space" | "time" | "list" | "point" | "vector" | "covariant-vector"
         | "normal" | "???" | "none" => None,
         "stub" | "scalar" => Some(1),
         "complex" | "2-vector" => Some(2),
-        "3-color" | "rgb-color" | "hsv-color" | "xyz-color" | "3-vector" | "3-gradient"
-        | "3-normal" => Some(3),
-        "2d-symmetric-matrix" => Some(3),
+        "3-color"
+        | "rgb-color"
+        | "hsv-color"
+        | "xyz-color"
+        | "3-vector"
+        | "3-gradient"
+        | "3-normal"
+        | "2d-symmetric-matrix" => Some(3),
         "4-color"
         | "rgba-color"
         | "4-vector"
@@ -360,16 +367,14 @@ pub fn parse_header_at(path: &Path, bytes: &[u8]) -> Result<NrrdHeader, FormatEr
             found: String::new(),
         });
     };
-    let version = match magic {
-        [b'N', b'R', b'R', b'D', b'0', b'0', b'0', v @ b'1'..=b'5'] => v - b'0',
-        _ => {
-            let shown: String = String::from_utf8_lossy(&magic[..magic.len().min(16)]).into();
-            return Err(FormatError::BadMagic {
-                path: path.to_path_buf(),
-                found: shown,
-            });
-        }
+    let [b'N', b'R', b'R', b'D', b'0', b'0', b'0', v @ b'1'..=b'5'] = magic else {
+        let shown: String = String::from_utf8_lossy(&magic[..magic.len().min(16)]).into();
+        return Err(FormatError::BadMagic {
+            path: path.to_path_buf(),
+            found: shown,
+        });
     };
+    let version = v - b'0';
 
     // Pass 1: split lines into fields and key/values; detect unknown and repeated fields.
     let mut fields: HashMap<&'static str, (usize, String)> = HashMap::new();
