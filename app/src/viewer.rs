@@ -20,7 +20,9 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 
-use crate::ui::backend::{Backend, CoreBackend, LoadedData, PreparedScene, RenderRequest, RenderedImage};
+use crate::ui::backend::{
+    Backend, CoreBackend, LoadedData, PreparedScene, RenderRequest, RenderedImage,
+};
 use crate::ui::camera::{CameraPose, box_edges, clip_box_world};
 use crate::ui::jobs::{Job, take_finished};
 use crate::ui::panels::{self, Command, Prefs};
@@ -136,7 +138,11 @@ impl ViewerApp {
     }
 
     /// The app with any backend (tests use a recording double).
-    pub fn with_backend(ctx: &egui::Context, backend: Arc<dyn Backend>, files: Vec<PathBuf>) -> Self {
+    pub fn with_backend(
+        ctx: &egui::Context,
+        backend: Arc<dyn Backend>,
+        files: Vec<PathBuf>,
+    ) -> Self {
         let ctx = ctx.clone();
         let mut app = Self {
             state: ViewerState::default(),
@@ -225,22 +231,21 @@ impl ViewerApp {
 
     fn start_load(&mut self, path: Option<PathBuf>, raw: Option<RawLayoutState>) {
         let backend = Arc::clone(&self.backend);
-        let label = path
-            .as_ref()
-            .map_or_else(|| "generating the default sample".to_string(), |p| format!("loading {}", p.display()));
+        let label = path.as_ref().map_or_else(
+            || "generating the default sample".to_string(),
+            |p| format!("loading {}", p.display()),
+        );
         self.load_job = Some(Job::spawn(label, self.repaint_fn(), move |control| {
-            match path {
-                Some(p) => {
-                    let kind = backend.open(&p, raw.as_ref(), control)?;
-                    let name = p
-                        .file_name()
-                        .map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
-                    LoadedData::new(name, Some(p), kind)
-                }
-                None => {
-                    let (name, kind) = backend.default_dataset(control)?;
-                    LoadedData::new(name, None, kind)
-                }
+            if let Some(p) = path {
+                let kind = backend.open(&p, raw.as_ref(), control)?;
+                let name = p.file_name().map_or_else(
+                    || p.display().to_string(),
+                    |n| n.to_string_lossy().into_owned(),
+                );
+                LoadedData::new(name, Some(p), kind)
+            } else {
+                let (name, kind) = backend.default_dataset(control)?;
+                LoadedData::new(name, None, kind)
             }
         }));
     }
@@ -272,11 +277,15 @@ impl ViewerApp {
     }
 
     fn cached_scene(&self, key: SceneKey) -> Option<Arc<dyn PreparedScene>> {
-        self.scenes.iter().find(|(k, _)| *k == key).map(|(_, s)| Arc::clone(s))
+        self.scenes
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, s)| Arc::clone(s))
     }
 
     fn cache_scene(&mut self, key: SceneKey, scene: Arc<dyn PreparedScene>) {
-        self.scenes.retain(|(k, _)| *k != key && k.epoch == self.epoch);
+        self.scenes
+            .retain(|(k, _)| *k != key && k.epoch == self.epoch);
         if self.scenes.len() >= SCENE_CACHE {
             self.scenes.pop_front();
         }
@@ -329,10 +338,8 @@ impl ViewerApp {
                 }
             }
         }
-        if let Some(result) = take_finished(&mut self.dialog_job) {
-            if let Ok(Some(cmd)) = result {
-                self.commands.push(cmd);
-            }
+        if let Some(Ok(Some(cmd))) = take_finished(&mut self.dialog_job) {
+            self.commands.push(cmd);
         }
         if let Some(result) = take_finished(&mut self.screenshot_job) {
             match result.and_then(|r| r) {
@@ -343,7 +350,9 @@ impl ViewerApp {
     }
 
     fn data_name(&self) -> String {
-        self.data.as_ref().map_or_else(String::new, |d| d.name.clone())
+        self.data
+            .as_ref()
+            .map_or_else(String::new, |d| d.name.clone())
     }
 
     fn install_data(&mut self, data: LoadedData) {
@@ -358,12 +367,20 @@ impl ViewerApp {
         if let Some(p) = &data.path {
             self.prefs.remember(p);
         }
-        self.state.time.step = self.state.time.step.min(data.step_count().saturating_sub(1));
+        self.state.time.step = self
+            .state
+            .time
+            .step
+            .min(data.step_count().saturating_sub(1));
         let (lo, hi) = data.value_range;
         // Keep restored isovalues (sessions) if they fit the data; otherwise start fresh.
-        self.state.surfaces.retain(|s| s.isovalue >= lo && s.isovalue <= hi);
+        self.state
+            .surfaces
+            .retain(|s| s.isovalue >= lo && s.isovalue <= hi);
         if self.state.surfaces.is_empty() {
-            self.state.surfaces.push(panels::new_surface(&self.state, &data));
+            self.state
+                .surfaces
+                .push(panels::new_surface(&self.state, &data));
         }
         self.data = Some(data);
         self.stats.datasets_loaded += 1;
@@ -404,7 +421,15 @@ impl ViewerApp {
                     self.stats.renders_shown += 1;
                 } else {
                     self.stats.renders_discarded += 1;
-                    self.notify(format!("renderer returned a {}×{} image with {} bytes", img.width, img.height, img.rgba8.len()), true);
+                    self.notify(
+                        format!(
+                            "renderer returned a {}×{} image with {} bytes",
+                            img.width,
+                            img.height,
+                            img.rgba8.len()
+                        ),
+                        true,
+                    );
                 }
             }
             _ => self.stats.renders_discarded += 1,
@@ -415,8 +440,12 @@ impl ViewerApp {
     }
 
     fn start_render(&mut self, request: RenderRequest) {
-        let Some(key) = self.wanted_scene_key() else { return };
-        let Some(scene) = self.cached_scene(key) else { return };
+        let Some(key) = self.wanted_scene_key() else {
+            return;
+        };
+        let Some(scene) = self.cached_scene(key) else {
+            return;
+        };
         self.generation += 1;
         let req = request.clone();
         let job = Job::spawn("rendering", self.repaint_fn(), move |control| {
@@ -475,17 +504,30 @@ impl ViewerApp {
         // Render.
         let interacting = self.is_interacting(ctx);
         let scale = if interacting { INTERACTIVE_SCALE } else { 1 };
-        let Some(wanted) = self.desired_request(scale) else { return };
-        if self.wanted_scene_key().and_then(|k| self.cached_scene(k)).is_none() {
+        let Some(wanted) = self.desired_request(scale) else {
+            return;
+        };
+        if self
+            .wanted_scene_key()
+            .and_then(|k| self.cached_scene(k))
+            .is_none()
+        {
             return;
         }
         let same_as = |r: &RenderRequest| *r == wanted;
-        if self.shown.as_ref().is_some_and(|s| same_as(&s.request) && s.request.step == wanted.step)
+        if self
+            .shown
+            .as_ref()
+            .is_some_and(|s| same_as(&s.request) && s.request.step == wanted.step)
             && self.render_job.as_ref().is_none_or(|r| same_as(&r.request))
         {
             return;
         }
-        if self.render_job.as_ref().is_some_and(|r| same_as(&r.request)) {
+        if self
+            .render_job
+            .as_ref()
+            .is_some_and(|r| same_as(&r.request))
+        {
             self.pending_render = None;
             return;
         }
@@ -516,9 +558,14 @@ impl ViewerApp {
         }
         let mut t = self.state.time;
         for _ in 0..PREFETCH_AHEAD {
-            let Some(next) = t.next_step(count) else { return };
+            let Some(next) = t.next_step(count) else {
+                return;
+            };
             t.step = next;
-            let key = SceneKey { step: next, ..current };
+            let key = SceneKey {
+                step: next,
+                ..current
+            };
             if self.cached_scene(key).is_none() {
                 self.prefetch_job = self.spawn_scene_job(key).map(|j| (key, j));
                 return;
@@ -570,7 +617,9 @@ impl ViewerApp {
                 self.start_load(None, None);
             }
             Command::OpenFiles(files) => {
-                let Some(first) = files.first().cloned() else { return };
+                let Some(first) = files.first().cloned() else {
+                    return;
+                };
                 self.state.files = files;
                 self.active_file = 0;
                 self.open_path(first);
@@ -654,7 +703,11 @@ impl ViewerApp {
                         .map(Command::LoadSession)
                 }));
             }
-            Command::Screenshot { path, width, height } => self.start_screenshot(path, width, height),
+            Command::Screenshot {
+                path,
+                width,
+                height,
+            } => self.start_screenshot(path, width, height),
             Command::CancelJobs => {
                 for j in [&self.load_job].into_iter().flatten() {
                     j.cancel();
@@ -667,7 +720,8 @@ impl ViewerApp {
                 }
                 self.screenshot_job = None;
             }
-            Command::RemoveSurface(_) | Command::RemoveClipBox(_) | Command::RemoveClipPlane(_) => {}
+            Command::RemoveSurface(_) | Command::RemoveClipBox(_) | Command::RemoveClipPlane(_) => {
+            }
         }
     }
 
@@ -692,15 +746,20 @@ impl ViewerApp {
         };
         req.width = width.clamp(1, MAX_RENDER_SIDE * 4);
         req.height = height.clamp(1, MAX_RENDER_SIDE * 4);
-        self.screenshot_job = Some(Job::spawn("screenshot", self.repaint_fn(), move |control| {
-            let img = scene
-                .render(&req, control.cancel_flag())?
-                .ok_or_else(|| "cancelled".to_string())?;
-            let buf = image::RgbaImage::from_raw(img.width, img.height, img.rgba8)
-                .ok_or_else(|| "the renderer returned a wrong-sized image".to_string())?;
-            buf.save(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-            Ok(path)
-        }));
+        self.screenshot_job = Some(Job::spawn(
+            "screenshot",
+            self.repaint_fn(),
+            move |control| {
+                let img = scene
+                    .render(&req, control.cancel_flag())?
+                    .ok_or_else(|| "cancelled".to_string())?;
+                let buf = image::RgbaImage::from_raw(img.width, img.height, img.rgba8)
+                    .ok_or_else(|| "the renderer returned a wrong-sized image".to_string())?;
+                buf.save(&path)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                Ok(path)
+            },
+        ));
     }
 
     // ---- UI ---------------------------------------------------------------------------
@@ -746,37 +805,70 @@ impl ViewerApp {
 
     fn side_ui(&mut self, ui: &mut egui::Ui) {
         egui::ScrollArea::vertical().show(ui, |ui| {
-            egui::CollapsingHeader::new("Data").default_open(true).show(ui, |ui| {
-                panels::data_ui(ui, &self.state, self.data.as_ref(), self.active_file, &mut self.commands);
-            });
-            egui::CollapsingHeader::new("Isosurfaces").default_open(true).show(ui, |ui| {
-                panels::isosurface_ui(ui, &mut self.state, self.data.as_ref(), &mut self.prefs.log_histogram, &mut self.commands);
-            });
-            egui::CollapsingHeader::new("Clipping").default_open(true).show(ui, |ui| {
-                panels::clip_ui(ui, &mut self.state, &mut self.commands);
-            });
-            egui::CollapsingHeader::new("Rendering").default_open(true).show(ui, |ui| {
-                panels::render_options_ui(ui, &mut self.state);
-            });
-            egui::CollapsingHeader::new("Camera").default_open(false).show(ui, |ui| {
-                panels::camera_ui(ui, &mut self.state, &mut self.commands);
-            });
+            egui::CollapsingHeader::new("Data")
+                .default_open(true)
+                .show(ui, |ui| {
+                    panels::data_ui(
+                        ui,
+                        &self.state,
+                        self.data.as_ref(),
+                        self.active_file,
+                        &mut self.commands,
+                    );
+                });
+            egui::CollapsingHeader::new("Isosurfaces")
+                .default_open(true)
+                .show(ui, |ui| {
+                    panels::isosurface_ui(
+                        ui,
+                        &mut self.state,
+                        self.data.as_ref(),
+                        &mut self.prefs.log_histogram,
+                        &mut self.commands,
+                    );
+                });
+            egui::CollapsingHeader::new("Clipping")
+                .default_open(true)
+                .show(ui, |ui| {
+                    panels::clip_ui(ui, &mut self.state, &mut self.commands);
+                });
+            egui::CollapsingHeader::new("Rendering")
+                .default_open(true)
+                .show(ui, |ui| {
+                    panels::render_options_ui(ui, &mut self.state);
+                });
+            egui::CollapsingHeader::new("Camera")
+                .default_open(false)
+                .show(ui, |ui| {
+                    panels::camera_ui(ui, &mut self.state, &mut self.commands);
+                });
         });
     }
 
     fn status_ui(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
             let now = Instant::now();
-            while self.shown_times.front().is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1)) {
+            while self
+                .shown_times
+                .front()
+                .is_some_and(|t| now.duration_since(*t) > Duration::from_secs(1))
+            {
                 self.shown_times.pop_front();
             }
             ui.label(format!("{} frames/s", self.shown_times.len()));
             if let Some(s) = &self.shown {
                 let secs = s.elapsed.as_secs_f64();
-                let rays_per_s = if secs > 0.0 { s.rays as f64 / secs } else { 0.0 };
+                let rays_per_s = if secs > 0.0 {
+                    s.rays as f64 / secs
+                } else {
+                    0.0
+                };
                 ui.label(format!("{:.2} Mrays/s", rays_per_s / 1e6));
                 let res = if s.request.scale > 1 {
-                    format!("{}×{} (1/{} while moving)", s.size[0], s.size[1], s.request.scale)
+                    format!(
+                        "{}×{} (1/{} while moving)",
+                        s.size[0], s.size[1], s.request.scale
+                    )
                 } else {
                     format!("{}×{}", s.size[0], s.size[1])
                 };
@@ -786,7 +878,11 @@ impl ViewerApp {
             ui.separator();
             let mut cancel = false;
             let job_row = |ui: &mut egui::Ui, label: &str, progress: f32, started: Instant| {
-                ui.add(egui::ProgressBar::new(progress).desired_width(120.0).text(format!("{label} {:.1}s", started.elapsed().as_secs_f32())));
+                ui.add(
+                    egui::ProgressBar::new(progress)
+                        .desired_width(120.0)
+                        .text(format!("{label} {:.1}s", started.elapsed().as_secs_f32())),
+                );
             };
             if let Some(j) = &self.load_job {
                 job_row(ui, &j.label, j.progress(), j.started);
@@ -795,12 +891,18 @@ impl ViewerApp {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
             if let Some((k, j)) = &self.prefetch_job {
-                job_row(ui, &format!("prefetch step {}", k.step), j.progress(), j.started);
+                job_row(
+                    ui,
+                    &format!("prefetch step {}", k.step),
+                    j.progress(),
+                    j.started,
+                );
             }
             if let Some(j) = &self.screenshot_job {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
-            if self.load_job.is_some() || self.scene_job.is_some() || self.screenshot_job.is_some() {
+            if self.load_job.is_some() || self.scene_job.is_some() || self.screenshot_job.is_some()
+            {
                 cancel = ui.button("Cancel").clicked();
                 ui.ctx().request_repaint_after(Duration::from_millis(100));
             }
@@ -819,13 +921,32 @@ impl ViewerApp {
             ((rect.height() * ppp).round() as u32).min(MAX_RENDER_SIDE),
         ];
         let painter = ui.painter_at(rect);
-        let bg = self.state.render.background.map(|c| (c.clamp(0.0, 1.0) * 255.0) as u8);
+        let bg = self
+            .state
+            .render
+            .background
+            .map(|c| (c.clamp(0.0, 1.0) * 255.0) as u8);
         painter.rect_filled(rect, 0.0, Color32::from_rgb(bg[0], bg[1], bg[2]));
         if let Some(s) = &self.shown {
-            painter.image(s.texture.id(), rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
+            painter.image(
+                s.texture.id(),
+                rect,
+                Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                Color32::WHITE,
+            );
         } else {
-            let text = if self.is_busy() { "working…" } else { "no image" };
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, text, egui::FontId::proportional(18.0), Color32::GRAY);
+            let text = if self.is_busy() {
+                "working…"
+            } else {
+                "no image"
+            };
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                text,
+                egui::FontId::proportional(18.0),
+                Color32::GRAY,
+            );
         }
         self.handle_view_input(ui, &response, rect);
         self.draw_clip_outlines(&painter, rect);
@@ -840,7 +961,9 @@ impl ViewerApp {
         let d = response.drag_delta();
         let px_to_radii = 2.0 * self.state.camera.zoom / rect.height().max(1.0);
         if pan_drag && d != Vec2::ZERO {
-            self.state.camera.pan_by(-d.x * px_to_radii, d.y * px_to_radii);
+            self.state
+                .camera
+                .pan_by(-d.x * px_to_radii, d.y * px_to_radii);
             moved = true;
         } else if response.dragged_by(egui::PointerButton::Primary) && d != Vec2::ZERO {
             self.state.camera.orbit(-d.x * 0.4, d.y * 0.4);
@@ -902,10 +1025,13 @@ impl ViewerApp {
         if let Some(dialog) = &mut self.raw_dialog {
             let mut open = true;
             let mut confirmed = false;
-            egui::Window::new("Raw file layout").open(&mut open).collapsible(false).show(ctx, |ui| {
-                ui.label(dialog.path.display().to_string());
-                confirmed = panels::raw_layout_ui(ui, &mut dialog.layout);
-            });
+            egui::Window::new("Raw file layout")
+                .open(&mut open)
+                .collapsible(false)
+                .show(ctx, |ui| {
+                    ui.label(dialog.path.display().to_string());
+                    confirmed = panels::raw_layout_ui(ui, &mut dialog.layout);
+                });
             if confirmed {
                 let d = self.raw_dialog.take().expect("dialog is open");
                 self.commands.push(Command::OpenRaw(d.path, d.layout));
@@ -916,32 +1042,46 @@ impl ViewerApp {
         if self.screenshot_window {
             let mut open = true;
             let mut take = false;
-            egui::Window::new("Screenshot").open(&mut open).collapsible(false).show(ctx, |ui| {
-                let [w, h] = &mut self.prefs.screenshot_size;
-                ui.horizontal(|ui| {
-                    let l = ui.label("Width");
-                    ui.add(egui::DragValue::new(w).range(16..=16384)).labelled_by(l.id);
-                    let l = ui.label("Height");
-                    ui.add(egui::DragValue::new(h).range(16..=16384)).labelled_by(l.id);
+            egui::Window::new("Screenshot")
+                .open(&mut open)
+                .collapsible(false)
+                .show(ctx, |ui| {
+                    let [w, h] = &mut self.prefs.screenshot_size;
+                    ui.horizontal(|ui| {
+                        let l = ui.label("Width");
+                        ui.add(egui::DragValue::new(w).range(16..=16384))
+                            .labelled_by(l.id);
+                        let l = ui.label("Height");
+                        ui.add(egui::DragValue::new(h).range(16..=16384))
+                            .labelled_by(l.id);
+                    });
+                    let mut path = self.prefs.screenshot_path.display().to_string();
+                    ui.horizontal(|ui| {
+                        let l = ui.label("PNG file");
+                        if ui
+                            .text_edit_singleline(&mut path)
+                            .labelled_by(l.id)
+                            .changed()
+                        {
+                            self.prefs.screenshot_path = PathBuf::from(&path);
+                        }
+                    });
+                    take = ui.button("Save PNG").clicked();
                 });
-                let mut path = self.prefs.screenshot_path.display().to_string();
-                ui.horizontal(|ui| {
-                    let l = ui.label("PNG file");
-                    if ui.text_edit_singleline(&mut path).labelled_by(l.id).changed() {
-                        self.prefs.screenshot_path = PathBuf::from(&path);
-                    }
-                });
-                take = ui.button("Save PNG").clicked();
-            });
             if take {
                 let [width, height] = self.prefs.screenshot_size;
-                self.commands.push(Command::Screenshot { path: self.prefs.screenshot_path.clone(), width, height });
+                self.commands.push(Command::Screenshot {
+                    path: self.prefs.screenshot_path.clone(),
+                    width,
+                    height,
+                });
                 open = false;
             }
             self.screenshot_window = open;
         }
         // Notifications, newest at the bottom; errors stay until dismissed.
-        self.notifications.retain(|n| n.is_error || n.created.elapsed() < Duration::from_secs(6));
+        self.notifications
+            .retain(|n| n.is_error || n.created.elapsed() < Duration::from_secs(6));
         if !self.notifications.is_empty() {
             let mut dismiss = None;
             egui::Area::new(egui::Id::unique("isoscope-notifications"))
@@ -950,7 +1090,11 @@ impl ViewerApp {
                     for (i, n) in self.notifications.iter().enumerate() {
                         egui::Frame::popup(ui.style()).show(ui, |ui| {
                             ui.set_max_width(380.0);
-                            let color = if n.is_error { Color32::from_rgb(255, 120, 100) } else { ui.visuals().text_color() };
+                            let color = if n.is_error {
+                                Color32::from_rgb(255, 120, 100)
+                            } else {
+                                ui.visuals().text_color()
+                            };
                             ui.colored_label(color, &n.text);
                             if ui.small_button("Dismiss").clicked() {
                                 dismiss = Some(i);
@@ -966,7 +1110,14 @@ impl ViewerApp {
     }
 
     fn handle_dropped_files(&mut self, ctx: &egui::Context) {
-        let dropped: Vec<PathBuf> = ctx.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).filter(|p| !p.as_os_str().is_empty()).collect());
+        let dropped: Vec<PathBuf> = ctx.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .filter(|p| !p.as_os_str().is_empty())
+                .collect()
+        });
         if !dropped.is_empty() {
             self.commands.push(Command::OpenFiles(dropped));
         }
@@ -998,7 +1149,8 @@ impl eframe::App for ViewerApp {
         }
         egui::Panel::left("isoscope-controls")
             .default_size(340.0)
-            .size_range(240.0..=560.0).show(ui, |ui| self.side_ui(ui));
+            .size_range(240.0..=560.0)
+            .show(ui, |ui| self.side_ui(ui));
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport_ui(ui));
         self.windows_ui(&ctx);
 

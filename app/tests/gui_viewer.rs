@@ -66,7 +66,12 @@ impl PreparedScene for RecordingScene {
         request: &RenderRequest,
         cancel: &AtomicBool,
     ) -> Result<Option<RenderedImage>, String> {
-        self.recorder.log.lock().unwrap().requests.push(request.clone());
+        self.recorder
+            .log
+            .lock()
+            .unwrap()
+            .requests
+            .push(request.clone());
         if cancel.load(Ordering::Relaxed) {
             return Ok(None);
         }
@@ -176,11 +181,13 @@ fn step_until(h: &mut Harness<'_, ViewerApp>, what: &str, done: impl Fn(&ViewerA
             "timed out waiting for {what}: {:?}, busy {}, notes {:?}",
             h.state().stats,
             h.state().is_busy(),
-            h.state().notifications().iter().map(|n| n.text.clone()).collect::<Vec<_>>()
+            h.state()
+                .notifications()
+                .iter()
+                .map(|n| n.text.clone())
+                .collect::<Vec<_>>()
         );
-        if start.elapsed() > Duration::from_secs(5) && start.elapsed() < Duration::from_millis(5010) {
-            eprintln!("shown {:?}\nwanted {:?}", h.state().shown_frame().map(|f| &f.request), h.state().desired_request(1));
-        }
+
         h.step();
         std::thread::sleep(Duration::from_millis(5));
     }
@@ -235,10 +242,17 @@ fn sweeping_an_isovalue_rerenders_without_rebuilding() {
         assert!((iso - target).abs() < 1e-9 * (hi - lo), "{iso} vs {target}");
         settle(&mut h);
         let shown = h.state().shown_frame().unwrap();
-        assert_eq!(shown.request.surfaces[1].isovalue, iso, "a frame with the new isovalue arrived");
+        assert_eq!(
+            shown.request.surfaces[1].isovalue, iso,
+            "a frame with the new isovalue arrived"
+        );
     }
     let log = rec.log.lock().unwrap();
-    assert_eq!(log.prepares.len(), 1, "isovalue changes never rebuild the scene");
+    assert_eq!(
+        log.prepares.len(),
+        1,
+        "isovalue changes never rebuild the scene"
+    );
     let isovalues: Vec<f64> = log
         .requests
         .iter()
@@ -292,7 +306,14 @@ fn stepping_the_time_slider_builds_and_shows_that_step() {
     settle(&mut h);
     assert_eq!(h.state().shown_frame().unwrap().request.step, 2);
     // Step s has value s at voxel (0,0,0): the scene for step 2 was built from step 2's data.
-    assert!(rec.log.lock().unwrap().prepares.iter().any(|&(v, _)| v == 2.0));
+    assert!(
+        rec.log
+            .lock()
+            .unwrap()
+            .prepares
+            .iter()
+            .any(|&(v, _)| v == 2.0)
+    );
 
     h.get_by_label("Next").click();
     h.run_steps(2);
@@ -313,7 +334,10 @@ fn playback_advances_and_loops() {
     let start = Instant::now();
     // Looping wraps to 0 after step 3: seeing every step (and 0 again) proves both.
     while !(seen.iter().all(|&s| s) && h.state().state.time.step == 0) {
-        assert!(start.elapsed() < Duration::from_secs(30), "playback stalled: {seen:?}");
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "playback stalled: {seen:?}"
+        );
         seen[h.state().state.time.step] = true;
         h.step();
         std::thread::sleep(Duration::from_millis(5));
@@ -349,12 +373,18 @@ fn a_bad_file_gives_a_notification_and_the_app_keeps_running() {
     let (mut h, _rec) = harness(vec![]);
     step_until(&mut h, "the default sample", |a| a.data().is_some());
     settle(&mut h);
-    h.state_mut()
-        .push(Command::OpenFiles(vec![PathBuf::from("/nowhere/broken.nrrd")]));
+    h.state_mut().push(Command::OpenFiles(vec![PathBuf::from(
+        "/nowhere/broken.nrrd",
+    )]));
     step_until(&mut h, "the error notification", |a| {
         a.notifications().iter().any(|n| n.is_error)
     });
-    let n = h.state().notifications().iter().find(|n| n.is_error).unwrap();
+    let n = h
+        .state()
+        .notifications()
+        .iter()
+        .find(|n| n.is_error)
+        .unwrap();
     assert!(n.text.contains("broken.nrrd"), "{}", n.text);
     // The previous data stays and still renders.
     assert_eq!(h.state().data().unwrap().dims, [64, 64, 64]);
@@ -385,7 +415,12 @@ fn a_session_saves_and_restores() {
     h.run_steps(1);
     assert_ne!(h.state().state, saved);
     h.state_mut().push(Command::LoadSession(path));
-    step_until(&mut h, "the restored session", |a| a.state == saved && !a.is_busy());
+    step_until(&mut h, "the restored session", |a| {
+        a.state == saved && !a.is_busy()
+    });
     settle(&mut h);
-    assert_eq!(h.state().shown_frame().unwrap().request.surfaces, saved.surfaces);
+    assert_eq!(
+        h.state().shown_frame().unwrap().request.surfaces,
+        saved.surfaces
+    );
 }

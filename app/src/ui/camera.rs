@@ -97,7 +97,7 @@ impl CameraPose {
         Some([(u / aspect + 1.0) * 0.5 * width, (1.0 - v) * 0.5 * height])
     }
 
-    fn to_view(&self, p: Vec3) -> Vec3 {
+    fn view_coords(&self, p: Vec3) -> Vec3 {
         let b = self.basis();
         let q = p - self.eye;
         Vec3::new(q.dot(b.right), q.dot(b.up), q.dot(b.forward))
@@ -105,7 +105,7 @@ impl CameraPose {
 
     /// Pixel position (continuous, row 0 at the top) of a world point, if it is in front.
     pub fn project(&self, p: Vec3, width: f32, height: f32) -> Option<[f32; 2]> {
-        self.view_to_pixel(self.to_view(p), width, height)
+        self.view_to_pixel(self.view_coords(p), width, height)
     }
 
     /// Projects a world segment, clipping it at the near limit so that edges passing behind
@@ -117,7 +117,7 @@ impl CameraPose {
         width: f32,
         height: f32,
     ) -> Option<([f32; 2], [f32; 2])> {
-        let (mut va, mut vb) = (self.to_view(a), self.to_view(b));
+        let (mut va, mut vb) = (self.view_coords(a), self.view_coords(b));
         if !self.orthographic {
             let near = 1e-3 * (self.target - self.eye).length().max(1e-6);
             if va.z < near && vb.z < near {
@@ -214,7 +214,10 @@ mod tests {
         for (a, b) in box_edges(&unit_box()) {
             for p in [a, b] {
                 let [x, y] = pose.project(p, w, h).unwrap();
-                assert!((0.0..=w).contains(&x) && (0.0..=h).contains(&y), "{p} -> {x},{y}");
+                assert!(
+                    (0.0..=w).contains(&x) && (0.0..=h).contains(&y),
+                    "{p} -> {x},{y}"
+                );
             }
         }
         assert!((pose.target - Vec3::ZERO).length() < 1e-6);
@@ -231,7 +234,10 @@ mod tests {
         let seg = pose.project_segment(behind, pose.target, 100.0, 100.0);
         let (_, end) = seg.unwrap();
         assert!((end[0] - 50.0).abs() < 1e-3 && (end[1] - 50.0).abs() < 1e-3);
-        assert!(pose.project_segment(behind, behind * 2.0, 100.0, 100.0).is_none());
+        assert!(
+            pose.project_segment(behind, behind * 2.0, 100.0, 100.0)
+                .is_none()
+        );
     }
 
     #[test]

@@ -212,8 +212,9 @@ impl Backend for CoreBackend {
             let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             control.set_progress(k as f32 / n as f32);
         };
-        let v = data_samples::marschner_lobb::generate_with_progress([n; 3], VoxelType::F32, &on_slice)
-            .map_err(|e| format!("generating the default sample: {e}"))?;
+        let v =
+            data_samples::marschner_lobb::generate_with_progress([n; 3], VoxelType::F32, &on_slice)
+                .map_err(|e| format!("generating the default sample: {e}"))?;
         Ok((
             format!("Marschner–Lobb {n}³ (embedded sample)"),
             DataKind::Volume(Arc::new(v)),
@@ -237,7 +238,9 @@ mod tests {
     use super::*;
     use crate::ui::backend::LoadedData;
     use crate::ui::camera::CameraPose;
-    use crate::ui::state::{ClipBoxState, ClipPlaneState, RenderOptions, SurfaceState, ViewerState};
+    use crate::ui::state::{
+        ClipBoxState, ClipPlaneState, RenderOptions, SurfaceState, ViewerState,
+    };
 
     fn request(data: &LoadedData, state: &ViewerState, w: u32, h: u32) -> RenderRequest {
         RenderRequest {
@@ -278,7 +281,11 @@ mod tests {
         };
         let h = 2.0 / (DEFAULT_SAMPLE_SIZE - 1) as f64;
         for (i, j, k) in [(0, 0, 0), (10, 20, 30), (63, 31, 5)] {
-            let want = ml(-1.0 + h * i as f64, -1.0 + h * j as f64, -1.0 + h * k as f64);
+            let want = ml(
+                -1.0 + h * i as f64,
+                -1.0 + h * j as f64,
+                -1.0 + h * k as f64,
+            );
             assert!((v.value_f64(i, j, k) - want).abs() < 1e-6);
         }
         assert_eq!(
@@ -313,7 +320,10 @@ mod tests {
             ..RenderOptions::default()
         };
         let s = settings(&request(&data, &state, 64, 48));
-        assert_eq!(s.surfaces, vec![Surface::new(0.25, state.surfaces[0].color)]);
+        assert_eq!(
+            s.surfaces,
+            vec![Surface::new(0.25, state.surfaces[0].color)]
+        );
         assert_eq!(s.clips.len(), 2, "the disabled box is left out");
         assert_eq!(
             s.clips[0],
@@ -332,7 +342,9 @@ mod tests {
             ClipRegion::Box { .. } => panic!("a plane"),
         }
         // Elevation 90° relative to the view: the light comes from the view's up direction.
-        let up = CameraPose::from_state(&state.camera, &data.bounds).basis().up;
+        let up = CameraPose::from_state(&state.camera, &data.bounds)
+            .basis()
+            .up;
         match s.light.kind {
             LightKind::Directional { dir } => assert!((dir - up).length() < 1e-5),
             k => panic!("directional light expected, got {k:?}"),
@@ -346,7 +358,9 @@ mod tests {
     #[test]
     fn the_real_renderer_draws_the_sample() {
         let data = sample();
-        let DataKind::Volume(v) = &data.kind else { panic!("a volume") };
+        let DataKind::Volume(v) = &data.kind else {
+            panic!("a volume")
+        };
         let scene = CoreBackend
             .prepare(v, IntersectorChoice::Exact, &JobControl::default())
             .unwrap();
@@ -357,21 +371,35 @@ mod tests {
             .render(&request(&data, &state, 64, 48), &cancel)
             .unwrap()
             .unwrap();
-        assert_eq!((img.width, img.height, img.rgba8.len()), (64, 48, 64 * 48 * 4));
+        assert_eq!(
+            (img.width, img.height, img.rgba8.len()),
+            (64, 48, 64 * 48 * 4)
+        );
         let bg = state.render.background.map(|c| (c * 255.0).round() as i32);
         let px = |i: usize, j: usize| {
             let o = 4 * (j * 64 + i);
-            [img.rgba8[o] as i32, img.rgba8[o + 1] as i32, img.rgba8[o + 2] as i32]
+            [
+                img.rgba8[o] as i32,
+                img.rgba8[o + 1] as i32,
+                img.rgba8[o + 2] as i32,
+            ]
         };
         let differs = |p: [i32; 3]| (0..3).any(|c| (p[c] - bg[c]).abs() > 3);
-        assert!(differs(px(32, 24)), "the surface covers the centre: {:?}", px(32, 24));
+        assert!(
+            differs(px(32, 24)),
+            "the surface covers the centre: {:?}",
+            px(32, 24)
+        );
         state.surfaces[0].isovalue = 5.0;
         let empty = scene
             .render(&request(&data, &state, 64, 48), &cancel)
             .unwrap()
             .unwrap();
-        assert!(empty.rgba8.chunks(4).all(|p| {
-            !differs([p[0] as i32, p[1] as i32, p[2] as i32])
-        }));
+        assert!(
+            empty
+                .rgba8
+                .chunks(4)
+                .all(|p| { !differs([p[0] as i32, p[1] as i32, p[2] as i32]) })
+        );
     }
 }

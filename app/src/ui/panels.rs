@@ -97,7 +97,13 @@ fn color_button(ui: &mut Ui, label: &str, rgb: &mut [f32; 3]) -> egui::Response 
 }
 
 /// Data summary and the list of opened files.
-pub fn data_ui(ui: &mut Ui, state: &ViewerState, data: Option<&LoadedData>, active_file: usize, commands: &mut Vec<Command>) {
+pub fn data_ui(
+    ui: &mut Ui,
+    state: &ViewerState,
+    data: Option<&LoadedData>,
+    active_file: usize,
+    commands: &mut Vec<Command>,
+) {
     match data {
         Some(d) => {
             ui.label(egui::RichText::new(&d.name).strong());
@@ -122,9 +128,10 @@ pub fn data_ui(ui: &mut Ui, state: &ViewerState, data: Option<&LoadedData>, acti
     if state.files.len() > 1 {
         ui.separator();
         for (i, f) in state.files.iter().enumerate() {
-            let name = f
-                .file_name()
-                .map_or_else(|| f.display().to_string(), |n| n.to_string_lossy().into_owned());
+            let name = f.file_name().map_or_else(
+                || f.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
             if ui.selectable_label(i == active_file, name).clicked() {
                 commands.push(Command::ShowFile(i));
             }
@@ -133,21 +140,39 @@ pub fn data_ui(ui: &mut Ui, state: &ViewerState, data: Option<&LoadedData>, acti
 }
 
 /// The histogram of the data with a marker per isosurface; `log` compresses tall bins.
-pub fn histogram_ui(ui: &mut Ui, data: &LoadedData, surfaces: &[SurfaceState], log: bool) -> egui::Response {
+pub fn histogram_ui(
+    ui: &mut Ui,
+    data: &LoadedData,
+    surfaces: &[SurfaceState],
+    log: bool,
+) -> egui::Response {
     let size = Vec2::new(ui.available_width(), 64.0);
     let (rect, response) = ui.allocate_exact_size(size, Sense::hover());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, ui.visuals().extreme_bg_color);
     let counts = &data.histogram.counts;
     let height = |c: u64| if log { (c as f32 + 1.0).ln() } else { c as f32 };
-    let max = counts.iter().map(|&c| height(c)).fold(0.0_f32, f32::max).max(1e-6);
+    let max = counts
+        .iter()
+        .map(|&c| height(c))
+        .fold(0.0_f32, f32::max)
+        .max(1e-6);
     let bar_w = rect.width() / counts.len().max(1) as f32;
-    let bar_color = ui.visuals().widgets.inactive.fg_stroke.color.gamma_multiply(0.6);
+    let bar_color = ui
+        .visuals()
+        .widgets
+        .inactive
+        .fg_stroke
+        .color
+        .gamma_multiply(0.6);
     for (i, &c) in counts.iter().enumerate() {
         let h = height(c) / max * rect.height();
         let x0 = rect.left() + i as f32 * bar_w;
         painter.rect_filled(
-            Rect::from_min_max(Pos2::new(x0, rect.bottom() - h), Pos2::new(x0 + bar_w, rect.bottom())),
+            Rect::from_min_max(
+                Pos2::new(x0, rect.bottom() - h),
+                Pos2::new(x0 + bar_w, rect.bottom()),
+            ),
             0.0,
             bar_color,
         );
@@ -157,7 +182,10 @@ pub fn histogram_ui(ui: &mut Ui, data: &LoadedData, surfaces: &[SurfaceState], l
         if hi > lo {
             let x = rect.left() + ((s.isovalue - lo) / (hi - lo)) as f32 * rect.width();
             let c = s.color.map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8);
-            let stroke = Stroke::new(if s.visible { 2.0 } else { 1.0 }, Color32::from_rgb(c[0], c[1], c[2]));
+            let stroke = Stroke::new(
+                if s.visible { 2.0 } else { 1.0 },
+                Color32::from_rgb(c[0], c[1], c[2]),
+            );
             painter.vline(x, rect.y_range(), stroke);
         }
     }
@@ -235,8 +263,12 @@ pub fn clip_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>
                 ui.radio_value(&mut b.keep, KeepSide::Outside, "Keep outside");
             });
             for (a, name) in AXES.iter().enumerate() {
-                ui.add(Slider::new(&mut b.min[a], 0.0..=1.0).text(format!("Box {} {name} min", i + 1)));
-                ui.add(Slider::new(&mut b.max[a], 0.0..=1.0).text(format!("Box {} {name} max", i + 1)));
+                ui.add(
+                    Slider::new(&mut b.min[a], 0.0..=1.0).text(format!("Box {} {name} min", i + 1)),
+                );
+                ui.add(
+                    Slider::new(&mut b.max[a], 0.0..=1.0).text(format!("Box {} {name} max", i + 1)),
+                );
                 if b.min[a] > b.max[a] {
                     b.max[a] = b.min[a];
                 }
@@ -258,7 +290,13 @@ pub fn clip_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>
             });
             ui.horizontal(|ui| {
                 for (a, name) in AXES.iter().enumerate() {
-                    labelled_drag(ui, &format!("n{name}"), DragValue::new(&mut p.normal[a]).speed(0.01).range(-1.0..=1.0));
+                    labelled_drag(
+                        ui,
+                        &format!("n{name}"),
+                        DragValue::new(&mut p.normal[a])
+                            .speed(0.01)
+                            .range(-1.0..=1.0),
+                    );
                 }
             });
             ui.add(Slider::new(&mut p.offset, -1.0..=1.0).text(format!("Plane {} offset", i + 1)));
@@ -315,7 +353,11 @@ pub fn camera_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Comman
             if ui.button(format!("View {}", i + 1)).clicked() {
                 state.camera = *b;
             }
-            if ui.small_button("Delete").on_hover_text("Delete bookmark").clicked() {
+            if ui
+                .small_button("Delete")
+                .on_hover_text("Delete bookmark")
+                .clicked()
+            {
                 remove = Some(i);
             }
         });
@@ -323,11 +365,22 @@ pub fn camera_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Comman
     if let Some(i) = remove {
         state.bookmarks.remove(i);
     }
-    ui.label(egui::RichText::new("drag: orbit · right/middle or shift-drag: pan · wheel: zoom · arrows, +/−, R").small().weak());
+    ui.label(
+        egui::RichText::new(
+            "drag: orbit · right/middle or shift-drag: pan · wheel: zoom · arrows, +/−, R",
+        )
+        .small()
+        .weak(),
+    );
 }
 
 /// Time slider, step buttons, play/pause, loop, fps, and the current step and time value.
-pub fn time_ui(ui: &mut Ui, state: &mut ViewerState, data: Option<&LoadedData>, commands: &mut Vec<Command>) {
+pub fn time_ui(
+    ui: &mut Ui,
+    state: &mut ViewerState,
+    data: Option<&LoadedData>,
+    commands: &mut Vec<Command>,
+) {
     let Some(data) = data else { return };
     let count = data.step_count();
     if count <= 1 {
@@ -353,12 +406,24 @@ pub fn time_ui(ui: &mut Ui, state: &mut ViewerState, data: Option<&LoadedData>, 
         }
         let mut step = t.step;
         ui.spacing_mut().slider_width = (ui.available_width() - 420.0).max(100.0);
-        if ui.add(Slider::new(&mut step, 0..=count - 1).text("Time step")).changed() {
+        if ui
+            .add(Slider::new(&mut step, 0..=count - 1).text("Time step"))
+            .changed()
+        {
             commands.push(Command::SetStep(step));
         }
-        ui.label(format!("step {} / {}  t = {:.4}", t.step, count - 1, data.kind.time_value(t.step)));
+        ui.label(format!(
+            "step {} / {}  t = {:.4}",
+            t.step,
+            count - 1,
+            data.kind.time_value(t.step)
+        ));
         ui.checkbox(&mut t.looping, "Loop");
-        ui.add(Slider::new(&mut t.fps, 0.5..=60.0).logarithmic(true).text("Playback fps"));
+        ui.add(
+            Slider::new(&mut t.fps, 0.5..=60.0)
+                .logarithmic(true)
+                .text("Playback fps"),
+        );
     });
 }
 
@@ -367,7 +432,11 @@ pub fn time_ui(ui: &mut Ui, state: &mut ViewerState, data: Option<&LoadedData>, 
 pub fn raw_layout_ui(ui: &mut Ui, layout: &mut RawLayoutState) -> bool {
     ui.horizontal(|ui| {
         for (a, name) in ["nx", "ny", "nz"].iter().enumerate() {
-            labelled_drag(ui, name, DragValue::new(&mut layout.dims[a]).range(1..=1 << 20));
+            labelled_drag(
+                ui,
+                name,
+                DragValue::new(&mut layout.dims[a]).range(1..=1 << 20),
+            );
         }
     });
     egui::ComboBox::from_label("Voxel type")
@@ -384,7 +453,13 @@ pub fn raw_layout_ui(ui: &mut Ui, layout: &mut RawLayoutState) -> bool {
     labelled_drag(ui, "Header bytes", DragValue::new(&mut layout.header_bytes));
     ui.horizontal(|ui| {
         for (a, name) in ["sx", "sy", "sz"].iter().enumerate() {
-            labelled_drag(ui, name, DragValue::new(&mut layout.spacing[a]).speed(0.01).range(1e-9..=1e9));
+            labelled_drag(
+                ui,
+                name,
+                DragValue::new(&mut layout.spacing[a])
+                    .speed(0.01)
+                    .range(1e-9..=1e9),
+            );
         }
     });
     ui.button("Open raw file").clicked()

@@ -73,8 +73,7 @@ impl ViewerState {
     }
 
     pub fn load(path: &Path) -> Result<Self, String> {
-        let text =
-            std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         Self::from_json(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 }
@@ -244,10 +243,16 @@ impl IntersectorChoice {
     /// One line on the speed/accuracy trade (docs/accuracy.md has the measurements).
     pub fn note(self) -> &'static str {
         match self {
-            Self::Linear => "fastest; interpolates between the cell entry and exit values, can miss thin features",
+            Self::Linear => {
+                "fastest; interpolates between the cell entry and exit values, can miss thin features"
+            }
             Self::Neubauer => "fast; a few secant steps (3), small errors, can miss double roots",
-            Self::Exact => "default; iterative root isolation of the cubic (thesis Listing 7.1), no misses",
-            Self::Schwarze => "analytic Cardano roots; exact in theory, loses precision in some cells",
+            Self::Exact => {
+                "default; iterative root isolation of the cubic (thesis Listing 7.1), no misses"
+            }
+            Self::Schwarze => {
+                "analytic Cardano roots; exact in theory, loses precision in some cells"
+            }
             Self::Reference => "f64 root isolation to full precision; slowest, for checking",
         }
     }
