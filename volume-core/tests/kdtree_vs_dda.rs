@@ -292,7 +292,7 @@ fn slim_layout_equals_naive_pointer_tree() {
         let n: usize = dims.iter().product();
         let vox: Vec<f32> = (0..n)
             .map(|_| {
-                if rng.next() % 13 == 0 {
+                if rng.next().is_multiple_of(13) {
                     f32::NAN
                 } else {
                     rng.range(-5.0, 5.0)
@@ -468,17 +468,12 @@ fn sphere_distance_field_hits_within_bound() {
 
 /// Packets (8 coherent rays from one eye, as a camera makes them) give exactly the
 /// single-ray hits, including groups the packet code must split (mixed direction signs).
-fn packets_equal_single<T: Voxel>(
-    grid: &Grid,
-    voxels: Vec<T>,
-    isos: &[f32],
-    rng: &mut Lcg,
-) -> usize {
+fn packets_equal_single<T: Voxel>(grid: &Grid, voxels: &[T], isos: &[f32], rng: &mut Lcg) -> usize {
     let mut hits = 0;
     for unstored in [0, 2] {
         let scene = GridScene::new(
             grid,
-            VoxelBuffer::from_vec(voxels.clone()),
+            VoxelBuffer::from_vec(voxels.to_vec()),
             Intersector::Exact,
             KdTreeConfig {
                 unstored_levels: unstored,
@@ -535,8 +530,8 @@ proptest! {
         let mut rng = Lcg(seed);
         let grid = grid_for(dims, &mut rng, explicit);
         let n = dims.iter().product::<usize>();
-        let voxels: Vec<f32> = (0..n).map(|_| if rng.next() % 50 == 0 { f32::NAN } else { rng.range(-1.0, 1.0) }).collect();
-        let _hits = packets_equal_single(&grid, voxels, &[0.2, -0.5], &mut rng);
+        let voxels: Vec<f32> = (0..n).map(|_| if rng.next().is_multiple_of(50) { f32::NAN } else { rng.range(-1.0, 1.0) }).collect();
+        let _hits = packets_equal_single(&grid, &voxels, &[0.2, -0.5], &mut rng);
     }
 }
 
@@ -548,6 +543,6 @@ fn packet_comparison_sees_hits() {
     let voxels: Vec<u8> = (0..dims.iter().product::<usize>())
         .map(|_| (rng.next() % 256) as u8)
         .collect();
-    let hits = packets_equal_single(&grid, voxels, &[100.5, 200.0], &mut rng);
+    let hits = packets_equal_single(&grid, &voxels, &[100.5, 200.0], &mut rng);
     assert!(hits > 200, "{hits}");
 }
