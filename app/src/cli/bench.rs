@@ -61,7 +61,7 @@ pub struct Args {
     /// Also print the speed/accuracy table for these intersectors: `all` or a comma list
     /// (linear,neubauer,exact,schwarze,reference).
     #[arg(long, value_name = "all|LIST", value_parser = parse_intersector_list)]
-    pub intersectors: Option<Vec<Intersector>>,
+    pub intersectors: Option<IntersectorList>,
     /// Most primary rays scored per intersector in the accuracy table (a regular subset of
     /// the pixels when the image has more).
     #[arg(long, value_name = "N", default_value_t = 262_144)]
@@ -145,12 +145,19 @@ pub struct BenchReport {
     pub intersectors: Option<Vec<IntersectorReport>>,
 }
 
+/// The intersectors of `--intersectors` (a newtype so that clap takes it as one value).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IntersectorList(pub Vec<Intersector>);
+
 /// `all` or a comma-separated list of intersector names.
-pub fn parse_intersector_list(s: &str) -> Result<Vec<Intersector>, String> {
+pub fn parse_intersector_list(s: &str) -> Result<IntersectorList, String> {
     if s.trim().eq_ignore_ascii_case("all") {
-        return Ok(Intersector::ALL.to_vec());
+        return Ok(IntersectorList(Intersector::ALL.to_vec()));
     }
-    s.split(',').map(parse_intersector).collect()
+    s.split(',')
+        .map(parse_intersector)
+        .collect::<Result<_, _>>()
+        .map(IntersectorList)
 }
 
 fn median(v: &[f64]) -> f64 {
@@ -299,7 +306,7 @@ pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
 
     let intersectors = match &args.intersectors {
         None => None,
-        Some(list) => {
+        Some(IntersectorList(list)) => {
             let rays = accuracy_rays(&camera, args.size[0], args.size[1], args.accuracy_rays);
             let mut rows = Vec::new();
             for &method in list {
@@ -457,9 +464,9 @@ mod tests {
     fn median_and_lists() {
         assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
         assert_eq!(median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
-        assert_eq!(parse_intersector_list("all").unwrap().len(), 5);
+        assert_eq!(parse_intersector_list("all").unwrap().0.len(), 5);
         assert_eq!(
-            parse_intersector_list("linear,exact").unwrap(),
+            parse_intersector_list("linear,exact").unwrap().0,
             vec![Intersector::Linear, Intersector::Exact]
         );
         assert!(parse_intersector_list("linear,bogus").is_err());

@@ -1,0 +1,247 @@
+//! `isoscope render` and `isoscope bench` end to end on a generated sphere distance field:
+//! the depth image equals the analytic ray–sphere distance within the trilinear
+//! interpolation bound, the PNG has the requested size, bad input gives clear errors, and the
+//! bench JSON carries its documented fields.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use data_samples::analytic::Sphere;
+use formats::nrrd::{NrrdEncoding, write_nrrd};
+use glam::Vec3;
+use volume_core::VoxelType;
+use volume_core::render::Camera;
+
+fn isoscope(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_isoscope"))
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .env_remove("RUST_LIB_BACKTRACE")
+        .output()
+        .expect("run isoscope")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = isoscope(args);
+    assert!(
+        out.status.success(),
+        "isoscope {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn fails(args: &[&str]) -> String {
+    let out = isoscope(args);
+    assert!(!out.status.success(), "isoscope {args:?} should fail");
+    String::from_utf8(out.stderr).unwrap()
+}
+
+/// A 41³ f32 sphere distance field over [−1, 1]³ (spacing 0.05).
+fn sphere_volume(dir: &Path) -> std::path::PathBuf {
+    let v = data_samples::Generator::Sphere
+        .generate([41; 3], VoxelType::F32)
+        .unwrap();
+    let path = dir.join("sphere.nrrd");
+    write_nrrd(&path, &v, NrrdEncoding::Raw).unwrap();
+    path
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn render_depth_matches_the_analytic_sphere() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let cam = Camera {
+        eye: Vec3::new(0.3, -0.2, 4.0),
+        target: Vec3::new(0.1, -0.05, 0.0),
+        up: Vec3::Y,
+        vfov_deg: 30.0,
+        projection: volume_core::render::Projection::Pinhole,
+        ortho_height: None,
+    };
+    let cam_path = dir.path().join("cam.json");
+    std::fs::write(&cam_path, serde_json::to_string(&cam).unwrap()).unwrap();
+    let png = dir.path().join("out.png");
+    let npy = dir.path().join("depth.npy");
+    let (w, h) = (61u32, 45u32);
+    ok(&[
+        "render",
+        s(&vol),
+        "--iso",
+        "0.6",
+        "--camera",
+        s(&cam_path),
+        "--size",
+        &format!("{w}x{h}"),
+        "-o",
+        s(&png),
+        "--depth-out",
+        s(&npy),
+    ]);
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (w, h));
+
+    let ((rows, cols), depth) =
+        isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap()).unwrap();
+    assert_eq!((rows, cols), (h as usize, w as usize));
+
+    let sphere = Sphere::of_sphere_field(0.6);
+    let tol = sphere.trilinear_error_bound([0.05; 3]).unwrap() + 1e-4;
+    let (mut compared, mut centre_checked) = (0, false);
+    for j in 0..h {
+        for i in 0..w {
+            let ray = cam.primary_ray(i, j, w, h);
+            let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+            let got = depth[(j * w + i) as usize];
+            match sphere.intersect(o, d) {
+                None => {
+                    // Well outside the silhouette nothing is hit.
+                    let perp = (sphere.centre - o) - d * (sphere.centre - o).dot(d);
+                    if perp.length() > 0.6 + tol * 4.0 {
+                        assert_eq!(got, f32::INFINITY, "pixel ({i},{j})");
+                    }
+                }
+                Some([t0, _]) => {
+                    // Away from grazing incidence the depth error is the value error.
+                    let n = sphere.normal(o + d * t0);
+                    if n.dot(-d) > 0.5 {
+                        assert!(
+                            (f64::from(got) - t0).abs() <= tol / n.dot(-d),
+                            "pixel ({i},{j}): depth {got} vs analytic {t0} (tol {tol})"
+                        );
+                        compared += 1;
+                        centre_checked |= i == w / 2 && j == h / 2;
+                    }
+                }
+            }
+        }
+    }
+    assert!(compared > 300, "{compared}");
+    assert!(centre_checked);
+    // The centre pixel's ray points at the target, which is inside the sphere.
+    assert!(depth[(h / 2 * w + w / 2) as usize].is_finite());
+}
+
+#[test]
+fn render_options_reach_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let plain = dir.path().join("plain.png");
+    let fancy = dir.path().join("fancy.png");
+    let npy = dir.path().join("d.npy");
+    ok(&["render", s(&vol), "--size", "48x32", "-o", s(&plain)]);
+    ok(&[
+        "render",
+        s(&vol),
+        "--size",
+        "48x32",
+        "--iso",
+        "0.5:#ff0000:0.5",
+        "--iso",
+        "0.3:#00ff00",
+        "--orbit",
+        "-40,10",
+        "--shadows",
+        "--light-dir",
+        "1,1,1",
+        "--clip-box",
+        "-2,-2,-2,2,2,0:inside",
+        "--clip-plane",
+        "1,0,0,0.5",
+        "--layers",
+        "3",
+        "--background",
+        "#ffffff",
+        "--intersector",
+        "neubauer:4",
+        "-o",
+        s(&fancy),
+        "--depth-out",
+        s(&npy),
+    ]);
+    let a = image::open(&plain).unwrap().to_rgba8();
+    let b = image::open(&fancy).unwrap().to_rgba8();
+    assert_ne!(a.as_raw(), b.as_raw());
+    // White background in the corner.
+    assert_eq!(b.get_pixel(0, 0).0, [255, 255, 255, 255]);
+}
+
+#[test]
+fn render_errors_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let out = dir.path().join("o.png");
+    let e = fails(&["render", s(&vol), "--iso", "abc", "-o", s(&out)]);
+    assert!(
+        e.contains("abc") && e.contains("not a finite number"),
+        "{e}"
+    );
+    let e = fails(&["render", s(&vol), "-o", s(&vol)]);
+    assert!(e.contains("is the input file"), "{e}");
+    let e = fails(&["render", s(&vol), "--size", "10x0", "-o", s(&out)]);
+    assert!(e.contains("10x0"), "{e}");
+    let e = fails(&["render", s(&vol), "--step", "2", "-o", s(&out)]);
+    assert!(e.contains("not a time series"), "{e}");
+    let cam = dir.path().join("cam.json");
+    std::fs::write(&cam, "{\"eye\": [0, 0, 1]}").unwrap();
+    let e = fails(&["render", s(&vol), "--camera", s(&cam), "-o", s(&out)]);
+    assert!(e.contains("cam.json"), "{e}");
+    let e = fails(&[
+        "render",
+        dir.path().join("missing.nrrd").to_str().unwrap(),
+        "-o",
+        s(&out),
+    ]);
+    assert!(e.contains("missing.nrrd"), "{e}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn bench_json_has_the_documented_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let json = ok(&[
+        "bench",
+        s(&vol),
+        "--iso",
+        "0.6",
+        "--size",
+        "48x48",
+        "--frames",
+        "2",
+        "--threads",
+        "2",
+        "--intersectors",
+        "linear,exact",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    assert!(v["rays_per_second"].as_f64().unwrap() > 0.0);
+    assert_eq!(v["threads"], 2);
+    assert_eq!(v["dims"], serde_json::json!([41, 41, 41]));
+    let configs = v["configs"].as_array().unwrap();
+    let names: Vec<&str> = configs
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["kdtree-packet", "kdtree-single", "dda"]);
+    assert_eq!(v["rays_per_second"], configs[0]["rays_per_second"]);
+    for c in configs {
+        assert!(c["median_ms"].as_f64().unwrap() > 0.0);
+        assert!(c["nodes_per_ray"].as_f64().unwrap() >= 0.0);
+        assert!(c["speedup_vs_dda"].as_f64().unwrap() > 0.0);
+    }
+    assert!(v["memory_overhead"].as_f64().unwrap() > 0.0);
+    let rows = v["intersectors"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    let exact = &rows[1];
+    assert_eq!(exact["name"], "exact");
+    assert!(exact["rays"].as_u64().unwrap() == 48 * 48);
+    assert!(exact["reference_hits"].as_u64().unwrap() > 100);
+    assert_eq!(exact["missed_percent"], 0.0);
+    assert_eq!(exact["false_hits_percent"], 0.0);
+}
