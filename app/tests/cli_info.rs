@@ -26,7 +26,8 @@ fn info_json(path: &Path, extra: &[&str]) -> Value {
     let out = isoscope(&args);
     assert!(
         out.status.success(),
-        "info {path:?} failed: {}",
+        "info {} failed: {}",
+        path.display(),
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("info --json prints JSON")
@@ -109,22 +110,19 @@ fn check_report(j: &Value, volume: &RectilinearVolume) {
     );
     let values = voxels(volume);
     let range = finite_range(&values);
-    match range {
-        Some([lo, hi]) => {
-            assert_close(&f64s(&j["value_range"]), &[lo, hi], "value_range");
-            assert_eq!(f64s(&j["histogram"]["counts"]).len(), 64);
-            let counts: Vec<u64> = j["histogram"]["counts"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|c| c.as_u64().unwrap())
-                .collect();
-            assert_eq!(counts, histogram(&values, lo, hi), "histogram");
-        }
-        None => {
-            assert!(j["value_range"].is_null());
-            assert!(j["histogram"].is_null());
-        }
+    if let Some([lo, hi]) = range {
+        assert_close(&f64s(&j["value_range"]), &[lo, hi], "value_range");
+        assert_eq!(f64s(&j["histogram"]["counts"]).len(), 64);
+        let counts: Vec<u64> = j["histogram"]["counts"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_u64().unwrap())
+            .collect();
+        assert_eq!(counts, histogram(&values, lo, hi), "histogram");
+    } else {
+        assert!(j["value_range"].is_null());
+        assert!(j["histogram"].is_null());
     }
     let nan = values.iter().filter(|x| x.is_nan()).count() as u64;
     let inf = values.iter().filter(|x| x.is_infinite()).count() as u64;
