@@ -68,7 +68,7 @@ pub fn read_f32_2d(mut r: impl Read) -> anyhow::Result<((usize, usize), Vec<f32>
     );
     let len = u16::from_le_bytes([pre[8], pre[9]]) as usize;
     ensure!(
-        (10 + len) % 16 == 0,
+        (10 + len).is_multiple_of(16),
         "npy: data offset {} is not 16-byte aligned",
         10 + len
     );
