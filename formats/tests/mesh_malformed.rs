@@ -21,7 +21,12 @@ fn read(kind: Kind, bytes: &[u8]) -> Result<LoadedMesh, MeshError> {
         Kind::Msh => gmsh::parse(Path::new("bad.msh"), bytes)?,
         Kind::TetGen => {
             let split = bytes.iter().position(|&b| b == 0).unwrap();
-            tetgen::parse(Path::new("bad.node"), &bytes[..split], Path::new("bad.ele"), &bytes[split + 1..])?
+            tetgen::parse(
+                Path::new("bad.node"),
+                &bytes[..split],
+                Path::new("bad.ele"),
+                &bytes[split + 1..],
+            )?
         }
     };
     raw.into_tet_mesh(Path::new("bad.mesh"))
@@ -56,13 +61,22 @@ fn parse_at(line: usize, needle: &'static str) -> impl Fn(&MeshError) -> bool {
     move |e| matches!(e, MeshError::Parse { line: l, reason, .. } if *l == line && reason.contains(needle))
 }
 
+/// (name, parser, bytes, expected error).
+type Case = (&'static str, Kind, Vec<u8>, Box<dyn Fn(&MeshError) -> bool>);
+
 #[test]
 fn malformed_files_give_specific_errors() {
     // A one-tet inline vtu of the given binary payload for "connectivity" (4 Int32s, header UInt32).
-    let conn_b64 = |payload: &str| vtu_doc("", "NumberOfPoints=\"4\" NumberOfCells=\"1\"", &format!(
-        "{VTU_POINTS}<Cells><DataArray type=\"Int32\" Name=\"connectivity\" format=\"binary\">{payload}</DataArray><DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray><DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">10</DataArray></Cells>"
-    ));
-    let cases: Vec<(&str, Kind, Vec<u8>, Box<dyn Fn(&MeshError) -> bool>)> = vec![
+    let conn_b64 = |payload: &str| {
+        vtu_doc(
+            "",
+            "NumberOfPoints=\"4\" NumberOfCells=\"1\"",
+            &format!(
+                "{VTU_POINTS}<Cells><DataArray type=\"Int32\" Name=\"connectivity\" format=\"binary\">{payload}</DataArray><DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">4</DataArray><DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">10</DataArray></Cells>"
+            ),
+        )
+    };
+    let cases: Vec<Case> = vec![
         ("vtk: not a vtk file", Kind::Vtk, b"hello\n".to_vec(), Box::new(parse_at(1, "not a legacy VTK file"))),
         ("vtk: version 6", Kind::Vtk, b"# vtk DataFile Version 6.0\nt\nASCII\n".to_vec(),
             Box::new(|e| matches!(e, MeshError::Unsupported { what, .. } if what.contains("version 6.0")))),
@@ -171,13 +185,22 @@ fn pvd_errors() {
     let p = dir.path().join("s.pvd");
     std::fs::write(&p, "<VTKFile type=\"Collection\"><Collection>\n<DataSet timestep=\"0\"/>\n</Collection></VTKFile>").unwrap();
     let e = mesh::read_pvd(&p).unwrap_err();
-    assert!(matches!(&e, MeshError::Parse { line: 2, reason, .. } if reason.contains("without a file")), "{e}");
+    assert!(
+        matches!(&e, MeshError::Parse { line: 2, reason, .. } if reason.contains("without a file")),
+        "{e}"
+    );
     std::fs::write(&p, "<VTKFile type=\"Collection\"><Collection><DataSet timestep=\"0\" file=\"missing.vtu\"/></Collection></VTKFile>").unwrap();
     let s = mesh::read_pvd(&p).unwrap();
     let e = s.load_step(0).unwrap_err();
-    assert!(matches!(&e, MeshError::Io { path, .. } if path.ends_with("missing.vtu")), "{e}");
+    assert!(
+        matches!(&e, MeshError::Io { path, .. } if path.ends_with("missing.vtu")),
+        "{e}"
+    );
     std::fs::write(&p, "<VTKFile type=\"UnstructuredGrid\"></VTKFile>").unwrap();
-    assert!(matches!(mesh::read_pvd(&p).unwrap_err(), MeshError::Parse { .. }));
+    assert!(matches!(
+        mesh::read_pvd(&p).unwrap_err(),
+        MeshError::Parse { .. }
+    ));
 }
 
 /// Truncating or flipping bytes of every committed test file never panics.
@@ -195,7 +218,9 @@ fn truncated_and_corrupted_files_never_panic() {
         let bytes = std::fs::read(&path).unwrap();
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         for step in 0..200 {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
             let mut b = bytes.clone();
             if step % 2 == 0 {
                 b.truncate((state >> 33) as usize % bytes.len());

@@ -44,8 +44,7 @@ fn nodes_of(ty: i64) -> Option<usize> {
         19 => 13,
         14 => 14,
         18 | 23 | 24 => 15,
-        13 | 29 => 20,
-        17 => 20,
+        13 | 17 | 29 => 20,
         25 => 21,
         12 => 27,
         30 => 35,
@@ -179,9 +178,9 @@ impl Parser<'_> {
                         return Err(self.c.err_at(start, "$Elements before $Nodes"));
                     }
                     if self.v4 {
-                        self.elements4(&mut mesh)?
+                        self.elements4(&mut mesh)?;
                     } else {
-                        self.elements2(&mut mesh)?
+                        self.elements2(&mut mesh)?;
                     }
                     have_elements = true;
                 }

@@ -173,11 +173,7 @@ pub fn read_pvd(path: &Path) -> Result<MeshSeries, MeshError> {
     let dir = path.parent().unwrap_or(Path::new(""));
     let perr = |pos: usize, reason: String| MeshError::Parse {
         path: path.to_path_buf(),
-        line: data[..pos.min(data.len())]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1,
+        line: super::text::newlines(&data[..pos.min(data.len())]) + 1,
         offset: pos as u64,
         reason,
     };

@@ -121,6 +121,7 @@ pub fn parse(
             ));
         }
         let mut ids = [0u64; 4];
+        #[allow(clippy::needless_range_loop)] // `k` also counts the nodes past the four corners
         for k in 0..per {
             e.skip_ws_comments();
             let at = e.pos;
@@ -136,8 +137,8 @@ pub fn parse(
                     ),
                 });
             }
-            if k < 4 {
-                ids[k] = local as u64;
+            if let Some(slot) = ids.get_mut(k) {
+                *slot = local as u64;
             }
         }
         for _ in 0..region {

@@ -8,6 +8,12 @@ use std::path::Path;
 
 use super::MeshError;
 
+/// Number of `\n` bytes (for line numbers in errors; only computed when erring).
+#[allow(clippy::naive_bytecount)]
+pub(crate) fn newlines(data: &[u8]) -> usize {
+    data.iter().filter(|&&b| b == b'\n').count()
+}
+
 pub(crate) struct Cursor<'a> {
     pub path: &'a Path,
     pub data: &'a [u8],
@@ -22,7 +28,7 @@ impl<'a> Cursor<'a> {
     /// 1-based line number of a byte offset.
     pub fn line_of(&self, pos: usize) -> usize {
         let end = pos.min(self.data.len());
-        self.data[..end].iter().filter(|&&b| b == b'\n').count() + 1
+        newlines(&self.data[..end]) + 1
     }
 
     pub fn err_at(&self, pos: usize, reason: impl Into<String>) -> MeshError {

@@ -13,6 +13,7 @@
 //! Write: [`write_vtk_legacy`], version 4.2 (readable by every VTK since 2.0 and by
 //! ParaView), `float` points, tetra cells, each field as `SCALARS name float 1`.
 
+use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
@@ -81,7 +82,7 @@ fn encode_name(s: &str) -> String {
             out.push(ch);
         } else {
             for b in ch.to_string().bytes() {
-                out.push_str(&format!("%{b:02X}"));
+                let _ = write!(out, "%{b:02X}");
             }
         }
     }

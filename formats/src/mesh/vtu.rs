@@ -77,11 +77,7 @@ struct Ctx<'a> {
 }
 
 fn line_of(data: &[u8], pos: usize) -> usize {
-    data[..pos.min(data.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
+    super::text::newlines(&data[..pos.min(data.len())]) + 1
 }
 
 fn attr_str(value: &[u8]) -> String {
@@ -303,7 +299,7 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<RawMesh, MeshError> {
                 }
                 match e.local_name().as_ref() {
                     b"Points" | b"Cells" | b"PointData" | b"CellData" | b"FieldData" => {
-                        section = Section::Other
+                        section = Section::Other;
                     }
                     _ => {}
                 }
