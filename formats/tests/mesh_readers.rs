@@ -326,15 +326,24 @@ fn writers_round_trip() {
     let mut fields = src.fields.clone();
     fields.push(PointField::new(
         "odd name <&> \"x\"",
-        (0..src.points.len()).map(|i| (i as f32).sin() * 1e-3 + 1.0 / 3.0).collect(),
+        (0..src.points.len())
+            .map(|i| (i as f32).sin() * 1e-3 + 1.0 / 3.0)
+            .collect(),
     ));
-    let points: Vec<[f32; 3]> = src.points.iter().map(|p| [p[0] + 0.1, p[1] / 3.0, -p[2]]).collect();
+    let points: Vec<[f32; 3]> = src
+        .points
+        .iter()
+        .map(|p| [p[0] + 0.1, p[1] / 3.0, -p[2]])
+        .collect();
     let m = TetMesh::new(points, src.tets.clone(), fields).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("a.vtu");
     mesh::write_vtu(&a, &m).unwrap();
     assert_eq!(mesh::read_mesh(&a).unwrap().mesh, m);
-    for (name, enc) in [("b.vtk", mesh::LegacyEncoding::Ascii), ("c.vtk", mesh::LegacyEncoding::Binary)] {
+    for (name, enc) in [
+        ("b.vtk", mesh::LegacyEncoding::Ascii),
+        ("c.vtk", mesh::LegacyEncoding::Binary),
+    ] {
         let p = dir.path().join(name);
         mesh::write_vtk_legacy(&p, &m, enc).unwrap();
         let back = mesh::read_mesh(&p).unwrap();

@@ -106,7 +106,7 @@ fn ascii_and_hex() {
         .map(|b| format!("{b:02x}"))
         .collect::<Vec<_>>()
         .chunks(16)
-        .map(|c| c.concat())
+        .map(<[String]>::concat)
         .collect::<Vec<_>>()
         .join("\n");
     write(
@@ -191,7 +191,11 @@ fn list_and_pattern_of_slice_files() {
     )
     .unwrap();
     assert_values(&volume(&h), |i| f64::from(value(i) as u8));
-    let names: String = (0..5).map(|z| format!("s{:02}.raw\n", 2 * z + 1)).collect();
+    let names: String = (0..5).fold(String::new(), |mut acc, z| {
+        use std::fmt::Write as _;
+        let _ = writeln!(acc, "s{:02}.raw", 2 * z + 1);
+        acc
+    });
     std::fs::write(
         &h,
         format!(
@@ -317,7 +321,7 @@ fn truncated_and_overlong_gzip_are_errors() {
             "cut {cut}: {e}"
         );
     }
-    let more: Vec<u8> = (0..N + 1).map(|i| value(i) as u8).collect();
+    let more: Vec<u8> = (0..=N).map(|i| value(i) as u8).collect();
     write(&p, header, &gzip(&more));
     let e = formats::open(&p, &OpenOptions::default()).unwrap_err();
     assert!(matches!(&e, FormatError::TooLong { .. }), "{e}");

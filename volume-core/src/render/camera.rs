@@ -277,12 +277,11 @@ mod tests {
         for (i, j) in [(0, 0), (63, 0), (0, 47), (63, 47), (31, 23), (17, 40)] {
             let ray = cam.primary_ray(i, j, w, h);
             let want = spec_dir(&cam, i, j, w, h);
-            for a in 0..3 {
+            for (a, want_a) in want.iter().enumerate() {
                 assert!(
-                    (f64::from(ray.dir[a]) - want[a]).abs() < 2e-6,
-                    "pixel ({i},{j}) axis {a}: {} vs {}",
+                    (f64::from(ray.dir[a]) - want_a).abs() < 2e-6,
+                    "pixel ({i},{j}) axis {a}: {} vs {want_a}",
                     ray.dir[a],
-                    want[a]
                 );
             }
             assert!((ray.dir.length() - 1.0).abs() < 1e-6);

@@ -183,7 +183,7 @@ mod tests {
             let n = 1 + (rng.next() % 4) as usize;
             let clips: Vec<ClipRegion> = (0..n)
                 .map(|_| {
-                    if rng.next() % 3 == 0 {
+                    if rng.next().is_multiple_of(3) {
                         ClipRegion::Plane {
                             normal: rng.vec(-1.0, 1.0),
                             offset: rng.range(-1.0, 1.0),
@@ -194,7 +194,7 @@ mod tests {
                         ClipRegion::Box {
                             min: a.min(b),
                             max: a.max(b),
-                            keep: if rng.next() % 2 == 0 {
+                            keep: if rng.next().is_multiple_of(2) {
                                 Keep::Inside
                             } else {
                                 Keep::Outside
