@@ -113,6 +113,25 @@ fn volume(path: &Path) -> RectilinearVolume {
     }
 }
 
+/// `isoscope info --json` for `path`, as the CLI prints it (the stable interface).
+fn info_json(path: &Path) -> serde_json::Value {
+    let report = isoscope::cli::info::gather(path, &OpenOptions::default())
+        .unwrap_or_else(|e| panic!("info {}: {e:#}", path.display()));
+    serde_json::to_value(&report).unwrap()
+}
+
+/// Checks `info --json` against the values the test wrote: dims, type and the finite range
+/// of `sample(t, offset..offset + N)`, computed here independently of the reader.
+fn assert_info(json: &serde_json::Value, t: VoxelType, offset: usize, what: &str) {
+    assert_eq!(json["dims"], serde_json::json!(DIMS), "{what}");
+    assert_eq!(json["voxel_type"], t.name(), "{what}");
+    let values = (offset..offset + N).map(|i| sample(t, i));
+    let lo = values.clone().fold(f64::INFINITY, f64::min);
+    let hi = values.fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(json["value_range"], serde_json::json!([lo, hi]), "{what}");
+    assert_eq!(json["nan_count"], 0, "{what}");
+}
+
 fn assert_voxels(v: &RectilinearVolume, t: VoxelType, offset: usize, what: &str) {
     assert_eq!(v.data.voxel_type(), t, "{what}");
     assert_eq!(v.dims(), DIMS, "{what}");
@@ -182,6 +201,11 @@ fn every_type_in_every_unu_encoding_and_byte_order() {
                     );
                     let v = volume(&d.join(&out));
                     assert_voxels(&v, t, 0, &out);
+                    let info = info_json(&d.join(&out));
+                    assert_info(&info, t, 0, &out);
+                    assert_eq!(info["spacing"], serde_json::json!([0.5, 1.0, 2.0]), "{out}");
+                    assert_eq!(info["origin"], serde_json::json!([0.0, 0.0, 0.0]), "{out}");
+                    assert!(info["world_from_grid"].is_null(), "{out}");
                     assert_eq!(v.grid.uniform_spacing(), Some([0.5, 1.0, 2.0]), "{out}");
                     assert_eq!(v.grid.origin().to_array(), [0.0; 3], "{out}");
                     assert_eq!(v.grid.world_from_grid(), None, "{out}");
@@ -235,6 +259,29 @@ fn space_directions_origin_and_detached_data_files() {
     unu(&bin, d, &args);
     let v = volume(&d.join("pattern.nhdr"));
     assert_voxels(&v, t, 0, "pattern.nhdr");
+    // `info --json` reports the oblique geometry: world = M · (origin + index · spacing) + t
+    // must land every corner voxel where Teem's directions put it.
+    let info = info_json(&d.join("pattern.nhdr"));
+    assert_info(&info, t, 0, "pattern.nhdr info");
+    let rows = &info["world_from_grid"];
+    let spacing: Vec<f64> = (0..3)
+        .map(|a| info["spacing"][a].as_f64().unwrap())
+        .collect();
+    let origin: Vec<f64> = (0..3)
+        .map(|a| info["origin"][a].as_f64().unwrap())
+        .collect();
+    for (i, j, k) in [(0, 0, 0), (4, 0, 0), (0, 3, 0), (0, 0, 2), (4, 3, 2)] {
+        let g = [
+            origin[0] + i as f64 * spacing[0],
+            origin[1] + j as f64 * spacing[1],
+            origin[2] + k as f64 * spacing[2],
+        ];
+        let world: [f64; 3] = std::array::from_fn(|r| {
+            let row = &rows[r];
+            (0..3).map(|c| row[c].as_f64().unwrap() * g[c]).sum::<f64>() + row[3].as_f64().unwrap()
+        });
+        assert_close(world, world_oblique(i, j, k), (i, j, k));
+    }
     let m = v
         .grid
         .world_from_grid()
