@@ -2,37 +2,14 @@
 //! the in-memory generator output (read back with `formats::open`), series are numbered files
 //! that open as a series, and bad arguments give clear errors without writing anything.
 
+mod common;
+use common::{fails, ok};
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use data_samples::Generator;
 use formats::{Dataset, OpenOptions};
 use volume_core::{RectilinearVolume, VoxelType};
-
-fn isoscope(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_isoscope"))
-        .args(args)
-        .env_remove("RUST_BACKTRACE")
-        .env_remove("RUST_LIB_BACKTRACE")
-        .output()
-        .expect("run isoscope")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = isoscope(args);
-    assert!(
-        out.status.success(),
-        "isoscope {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn fails(args: &[&str]) -> String {
-    let out = isoscope(args);
-    assert!(!out.status.success(), "isoscope {args:?} should fail");
-    String::from_utf8(out.stderr).unwrap()
-}
 
 fn open(path: &Path) -> Dataset {
     formats::open(path, &OpenOptions::default()).unwrap()

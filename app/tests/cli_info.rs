@@ -2,23 +2,16 @@
 //! here): dims, type, spacing and origin from its grid, the value range and histogram by brute
 //! force over its voxels. Files are written with `formats::nrrd::write_nrrd` or by hand (raw).
 
+mod common;
+use common::isoscope;
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use data_samples::Generator;
 use formats::nrrd::{NrrdEncoding, write_nrrd};
 use glam::{DAffine3, DMat3, DVec3};
 use serde_json::Value;
 use volume_core::{AxisCoords, Grid, RectilinearVolume, VoxelType};
-
-fn isoscope(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_isoscope"))
-        .args(args)
-        .env_remove("RUST_BACKTRACE")
-        .env_remove("RUST_LIB_BACKTRACE")
-        .output()
-        .expect("run isoscope")
-}
 
 fn info_json(path: &Path, extra: &[&str]) -> Value {
     let mut args = vec!["info", path.to_str().unwrap(), "--json"];

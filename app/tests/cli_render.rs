@@ -3,39 +3,16 @@
 //! interpolation bound, the PNG has the requested size, bad input gives clear errors, and the
 //! bench JSON carries its documented fields.
 
+mod common;
+use common::{fails, ok};
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use data_samples::analytic::Sphere;
 use formats::nrrd::{NrrdEncoding, write_nrrd};
 use glam::Vec3;
 use volume_core::VoxelType;
 use volume_core::render::Camera;
-
-fn isoscope(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_isoscope"))
-        .args(args)
-        .env_remove("RUST_BACKTRACE")
-        .env_remove("RUST_LIB_BACKTRACE")
-        .output()
-        .expect("run isoscope")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = isoscope(args);
-    assert!(
-        out.status.success(),
-        "isoscope {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn fails(args: &[&str]) -> String {
-    let out = isoscope(args);
-    assert!(!out.status.success(), "isoscope {args:?} should fail");
-    String::from_utf8(out.stderr).unwrap()
-}
 
 /// A 41³ f32 sphere distance field over [−1, 1]³ (spacing 0.05).
 fn sphere_volume(dir: &Path) -> std::path::PathBuf {
