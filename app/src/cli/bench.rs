@@ -173,8 +173,9 @@ fn median(v: &[f64]) -> f64 {
     }
 }
 
-/// Times `frames` frames (after a warm-up) and one statistics frame of one configuration.
-fn time_config(
+/// Times `frames` frames (after a warm-up) and one statistics frame of one configuration
+/// (also used by `isoscope accuracy`).
+pub fn time_config(
     name: &str,
     scene: &AnyGridScene,
     dda: bool,
@@ -218,7 +219,7 @@ fn time_config(
 }
 
 /// Primary rays of the camera, every `stride`-th pixel per axis so that at most `max` remain.
-fn accuracy_rays(camera: &Camera, width: u32, height: u32, max: usize) -> Vec<Ray> {
+pub fn accuracy_rays(camera: &Camera, width: u32, height: u32, max: usize) -> Vec<Ray> {
     let pixels = width as usize * height as usize;
     let stride = ((pixels as f64 / max.max(1) as f64).sqrt().ceil() as u32).max(1);
     let raygen = RayGen::new(camera, width, height);
