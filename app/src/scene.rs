@@ -1,0 +1,941 @@
+//! # Loaded scenes: one type for every kind of data the renderer draws
+//!
+//! [`open_scene`] opens any supported path and returns an [`AnyScene`]; the CLI (`render`,
+//! `bench`) and the viewer use it the same way, so there is one place that decides how a
+//! file becomes something to ray trace, and one render call for every kind:
+//!
+//! | kind | files | acceleration structure |
+//! |---|---|---|
+//! | [`AnyScene::Grid`] | NRRD/NHDR, raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
+//! | [`AnyScene::Tet`] | `.vtk`, `.vtu`, `.msh`, `.node`/`.ele`, a `.pvd` collection or a mesh pattern (`step_%03d.vtu`, `step_*.vtu`) — via `formats::mesh` | implicit min/max BVH with 4D bounds ([`TetScene`], ch. 8) |
+//! | [`AnyScene::Ooc`] | `.isot` treelet files (`isoscope preprocess`) — via `formats::treelet::open_isot` | treelets + loader thread ([`AnyOocVolume`], §7.7–7.8) |
+//!
+//! ## Use
+//! ```no_run
+//! # use std::sync::atomic::AtomicBool;
+//! # use isoscope::scene::{open_scene, SceneOptions};
+//! # use volume_core::render::{Camera, RenderSettings, Surface};
+//! # fn main() -> anyhow::Result<()> {
+//! let scene = open_scene("ball.vtu".as_ref(), &SceneOptions::default())?;
+//! let iso = scene.default_isovalue().unwrap_or(0.0);
+//! let camera = Camera::orbit(&scene.world_bounds(), 30.0, 20.0, 40.0);
+//! let settings = RenderSettings {
+//!     surfaces: vec![Surface::new(iso, [0.9, 0.8, 0.6])],
+//!     ..RenderSettings::default()
+//! };
+//! let frame = scene.render(&camera, &settings, &AtomicBool::new(false));
+//! # Ok(()) }
+//! ```
+//!
+//! - Rendering: [`AnyScene::render`] calls [`volume_core::render::render`] once, on the
+//!   typed scene ([`AnyScene::visit`] hands it to any [`SceneVisitor`], fully monomorphized:
+//!   no dynamic dispatch per ray). Shading, transparency, clipping and shadows are the
+//!   renderer's, shared by all kinds.
+//! - Out-of-core: `render` first tells the loader the frame's active isovalues
+//!   ([`OocData::set_isovalues`]; the same quantized bucket is a no-op), then renders with the
+//!   levels loaded so far — it never waits. Poll [`OocData::status`] for a progress
+//!   indicator, or [`OocData::wait_until_finished`] (not from a render thread) to wait for the
+//!   finest level the isovalues need. [`OocData::render_with_level`] also reports the level
+//!   the frame reached.
+//! - Time steps: [`AnyScene::step_count`], [`AnyScene::set_step`]: grids refit the kd-tree
+//!   (thesis §7.6), meshes refit the BVH (§8.5.2: value ranges only when only scalars change,
+//!   full 4D refit when points move).
+//! - Meshes: the drawn point array is [`SceneOptions::field`] (default: the first one) and
+//!   can be switched with [`TetData::set_field`] (a value refit, no rebuild). Normals
+//!   ([`TetNormals`], faceted by default) and the packet size ([`SceneOptions::packet_rays`],
+//!   default 256 = 16×16; the renderer orders a tile's rays along a Morton curve, so 4 rays are
+//!   a 2×2 block and 256 a 16×16 block) are per-scene settings.
+//!
+//! Nothing here prints or depends on clap: errors are `anyhow` with the file named.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, bail};
+use formats::mesh::{LoadedMesh, MeshSeries};
+use volume_core::RectilinearVolume;
+use volume_core::grid_scene::{AnyGridScene, SceneVisitor};
+use volume_core::intersect::Intersector;
+use volume_core::math::Aabb;
+use volume_core::ooc::{AnyOocVolume, OocOptions};
+use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, render};
+use volume_core::series::TimeSeries;
+use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
+
+/// The three kinds of scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneKind {
+    /// A rectilinear volume (or a series of them) with the kd-tree.
+    Grid,
+    /// A tetrahedral mesh (or a series) with the BVH.
+    Tet,
+    /// An out-of-core `.isot` treelet file.
+    Ooc,
+}
+
+impl SceneKind {
+    /// `"grid"`, `"tet"` or `"isot"` (the `kind` field of `info --json` and `bench --json`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            SceneKind::Grid => "grid",
+            SceneKind::Tet => "tet",
+            SceneKind::Ooc => "isot",
+        }
+    }
+}
+
+impl std::fmt::Display for SceneKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What [`open_scene`] will open `path` as: meshes by extension (`.vtk`, `.vtu`, `.msh`,
+/// `.node`, `.ele`, `.pvd`, also in patterns), `.isot` by extension or magic, else a grid.
+pub fn detect_kind(path: &Path) -> SceneKind {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if formats::mesh::is_mesh_path(path) {
+        SceneKind::Tet
+    } else if ext.as_deref() == Some("isot") || (path.is_file() && formats::treelet::is_isot(path))
+    {
+        SceneKind::Ooc
+    } else {
+        SceneKind::Grid
+    }
+}
+
+/// How to open a file (everything but the path).
+#[derive(Debug, Clone)]
+pub struct SceneOptions {
+    /// Raw-file layout (grids only; ignored for self-describing files).
+    pub open: formats::OpenOptions,
+    /// Time step to show first (grids and meshes; `0` for single files).
+    pub step: usize,
+    /// Mesh point array to draw (`None`: the first one).
+    pub field: Option<String>,
+    /// Cell intersector (grids and `.isot`).
+    pub intersector: Intersector,
+    /// BVH builder and leaf size (meshes).
+    pub bvh: BvhOptions,
+    /// Shading normals (meshes).
+    pub normals: TetNormals,
+    /// Rays per packet of the mesh traversal, `1..=256` (256 = 16×16, 4 = 2×2).
+    pub packet_rays: usize,
+    /// Out-of-core loader options (memory budget).
+    pub ooc: OocOptions,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        Self {
+            open: formats::OpenOptions::default(),
+            step: 0,
+            field: None,
+            intersector: Intersector::Exact,
+            bvh: BvhOptions::default(),
+            normals: TetNormals::Faceted,
+            packet_rays: MAX_PACKET,
+            ooc: OocOptions::default(),
+        }
+    }
+}
+
+/// A loaded scene of any kind (module docs).
+#[derive(Debug)]
+pub enum AnyScene {
+    Grid(GridData),
+    Tet(TetData),
+    Ooc(OocData),
+}
+
+/// Opens `path` as whatever it is ([`detect_kind`]) and builds its acceleration structure.
+/// `.isot` files start their loader thread with the top treelet only.
+pub fn open_scene(path: &Path, options: &SceneOptions) -> anyhow::Result<AnyScene> {
+    match detect_kind(path) {
+        SceneKind::Grid => GridData::open(path, options).map(AnyScene::Grid),
+        SceneKind::Tet => TetData::open(path, options).map(AnyScene::Tet),
+        SceneKind::Ooc => OocData::open(path, options).map(AnyScene::Ooc),
+    }
+}
+
+/// Renders a typed scene with [`volume_core::render::render`] (the one shading path).
+#[derive(Clone, Copy)]
+pub struct RenderVisitor<'a> {
+    pub camera: &'a Camera,
+    pub settings: &'a RenderSettings,
+    pub cancel: &'a AtomicBool,
+}
+
+impl SceneVisitor for RenderVisitor<'_> {
+    type Output = Option<Frame>;
+    fn visit<S: IsoScene>(self, scene: &S) -> Option<Frame> {
+        render(scene, self.camera, self.settings, self.cancel)
+    }
+}
+
+struct BoundsVisitor;
+
+impl SceneVisitor for BoundsVisitor {
+    type Output = Aabb;
+    fn visit<S: IsoScene>(self, scene: &S) -> Aabb {
+        scene.world_bounds()
+    }
+}
+
+impl AnyScene {
+    pub fn kind(&self) -> SceneKind {
+        match self {
+            AnyScene::Grid(_) => SceneKind::Grid,
+            AnyScene::Tet(_) => SceneKind::Tet,
+            AnyScene::Ooc(_) => SceneKind::Ooc,
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        match self {
+            AnyScene::Grid(g) => &g.path,
+            AnyScene::Tet(t) => &t.path,
+            AnyScene::Ooc(o) => &o.path,
+        }
+    }
+
+    pub fn as_grid(&self) -> Option<&GridData> {
+        match self {
+            AnyScene::Grid(g) => Some(g),
+            _ => None,
+        }
+    }
+
+    pub fn as_grid_mut(&mut self) -> Option<&mut GridData> {
+        match self {
+            AnyScene::Grid(g) => Some(g),
+            _ => None,
+        }
+    }
+
+    pub fn as_tet(&self) -> Option<&TetData> {
+        match self {
+            AnyScene::Tet(t) => Some(t),
+            _ => None,
+        }
+    }
+
+    pub fn as_tet_mut(&mut self) -> Option<&mut TetData> {
+        match self {
+            AnyScene::Tet(t) => Some(t),
+            _ => None,
+        }
+    }
+
+    pub fn as_ooc(&self) -> Option<&OocData> {
+        match self {
+            AnyScene::Ooc(o) => Some(o),
+            _ => None,
+        }
+    }
+
+    /// Hands the typed scene (kd-tree, BVH, or this frame's out-of-core snapshot) to
+    /// `visitor`: the generic code runs monomorphized for the concrete scene type.
+    pub fn visit<V: SceneVisitor>(&self, visitor: V) -> V::Output {
+        match self {
+            AnyScene::Grid(g) => g.scene.visit(visitor),
+            AnyScene::Tet(t) => visitor.visit(&t.scene),
+            AnyScene::Ooc(o) => o.volume.visit_scene(o.intersector, visitor),
+        }
+    }
+
+    /// Renders one frame (`None` if `cancel` was set). Out-of-core scenes first request the
+    /// treelets of the active isovalues, then draw what is loaded (module docs).
+    pub fn render(
+        &self,
+        camera: &Camera,
+        settings: &RenderSettings,
+        cancel: &AtomicBool,
+    ) -> Option<Frame> {
+        if let AnyScene::Ooc(o) = self {
+            o.set_isovalues(&settings.active_isovalues().0);
+        }
+        self.visit(RenderVisitor {
+            camera,
+            settings,
+            cancel,
+        })
+    }
+
+    /// World-space bounds of the data.
+    pub fn world_bounds(&self) -> Aabb {
+        self.visit(BoundsVisitor)
+    }
+
+    /// Smallest and largest finite value of the current step (grids, `.isot`) or of the drawn
+    /// array at the current step (meshes); `None` if nothing is finite.
+    pub fn value_range(&self) -> Option<(f64, f64)> {
+        match self {
+            AnyScene::Grid(g) => g.value_range,
+            AnyScene::Tet(t) => t.value_range(),
+            AnyScene::Ooc(o) => o.value_range(),
+        }
+    }
+
+    /// The middle of [`Self::value_range`]: the isovalue shown when none is given.
+    pub fn default_isovalue(&self) -> Option<f32> {
+        self.value_range().map(|(lo, hi)| (0.5 * (lo + hi)) as f32)
+    }
+
+    /// Time steps (1 for single files and `.isot`).
+    pub fn step_count(&self) -> usize {
+        match self {
+            AnyScene::Grid(g) => g.series.as_ref().map_or(1, TimeSeries::step_count),
+            AnyScene::Tet(t) => t.series.as_ref().map_or(1, MeshSeries::len),
+            AnyScene::Ooc(_) => 1,
+        }
+    }
+
+    pub fn step(&self) -> usize {
+        match self {
+            AnyScene::Grid(g) => g.step,
+            AnyScene::Tet(t) => t.step,
+            AnyScene::Ooc(_) => 0,
+        }
+    }
+
+    /// The time of `step` as the file records it (the step index otherwise).
+    pub fn time_value(&self, step: usize) -> f64 {
+        match self {
+            AnyScene::Grid(g) => g
+                .series
+                .as_ref()
+                .map_or(step as f64, |s| s.time_value(step)),
+            AnyScene::Tet(t) => t
+                .series
+                .as_ref()
+                .and_then(|s| s.steps.get(step))
+                .map_or(step as f64, |s| s.time),
+            AnyScene::Ooc(_) => step as f64,
+        }
+    }
+
+    /// Switches to another time step: a refit, not a rebuild.
+    pub fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
+        match self {
+            AnyScene::Grid(g) => g.set_step(step),
+            AnyScene::Tet(t) => t.set_step(step),
+            AnyScene::Ooc(o) => check_step(step, 1, &o.path),
+        }
+    }
+
+    /// The cell intersector (grids and `.isot`; meshes intersect isopolygons and ignore it).
+    pub fn set_intersector(&mut self, intersector: Intersector) {
+        match self {
+            AnyScene::Grid(g) => g.scene.set_intersector(intersector),
+            AnyScene::Tet(_) => {}
+            AnyScene::Ooc(o) => o.intersector = intersector,
+        }
+    }
+
+    /// Time to build the acceleration structure (the `.isot` open time for out-of-core).
+    pub fn build_time(&self) -> Duration {
+        match self {
+            AnyScene::Grid(g) => g.scene.build_time(),
+            AnyScene::Tet(t) => t.build_time,
+            AnyScene::Ooc(o) => o.open_time,
+        }
+    }
+
+    /// Bytes of the acceleration structure (kd-tree, BVH nodes) or of the resident treelets.
+    pub fn structure_bytes(&self) -> u64 {
+        match self {
+            AnyScene::Grid(g) => g.scene.memory_bytes() as u64,
+            AnyScene::Tet(t) => t.scene.bvh_info().bytes as u64,
+            AnyScene::Ooc(o) => o.volume.resident_bytes(),
+        }
+    }
+
+    /// One line for status bars and logs, e.g. `tet mesh: 12000 tets, 2400 points, field
+    /// "distance"`.
+    pub fn describe(&self) -> String {
+        match self {
+            AnyScene::Grid(g) => {
+                let d = g.volume.dims();
+                let steps = self.step_count();
+                let series = if steps > 1 {
+                    format!(", step {} of {steps}", g.step)
+                } else {
+                    String::new()
+                };
+                format!(
+                    "grid {}x{}x{} {}{series}",
+                    d[0],
+                    d[1],
+                    d[2],
+                    g.volume.data.voxel_type()
+                )
+            }
+            AnyScene::Tet(t) => {
+                let steps = self.step_count();
+                let series = if steps > 1 {
+                    format!(", step {} of {steps}", t.step)
+                } else {
+                    String::new()
+                };
+                format!(
+                    "tet mesh: {} tets, {} points, field \"{}\"{series}",
+                    t.scene.num_tets(),
+                    t.scene.num_points(),
+                    t.field
+                )
+            }
+            AnyScene::Ooc(o) => {
+                let d = o.volume.meta().layout.dims();
+                let s = o.status();
+                format!(
+                    "out-of-core {}x{}x{} {}: level {}/{} loaded, {:.1} MiB resident",
+                    d[0],
+                    d[1],
+                    d[2],
+                    o.volume.meta().voxel_type,
+                    s.loaded_levels,
+                    s.level_count,
+                    s.resident_bytes as f64 / f64::from(1u32 << 20)
+                )
+            }
+        }
+    }
+}
+
+fn check_step(step: usize, count: usize, path: &Path) -> anyhow::Result<()> {
+    if step >= count {
+        if count == 1 {
+            bail!(
+                "time step {step}: {} is a single data set, not a time series",
+                path.display()
+            );
+        }
+        bail!(
+            "time step {step}: {} has {count} time steps (0..{})",
+            path.display(),
+            count - 1
+        );
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Grids
+
+/// A rectilinear volume (one step of a series) and its kd-tree.
+pub struct GridData {
+    path: PathBuf,
+    /// The current step's volume (voxels shared with the scene, not copied).
+    volume: RectilinearVolume,
+    series: Option<TimeSeries>,
+    step: usize,
+    scene: AnyGridScene,
+    value_range: Option<(f64, f64)>,
+}
+
+impl std::fmt::Debug for GridData {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GridData")
+            .field("path", &self.path)
+            .field("step", &self.step)
+            .field(
+                "steps",
+                &self.series.as_ref().map_or(1, TimeSeries::step_count),
+            )
+            .field("scene", &self.scene)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GridData {
+    fn open(path: &Path, options: &SceneOptions) -> anyhow::Result<Self> {
+        let (volume, series) = match formats::open(path, &options.open)? {
+            formats::Dataset::Volume(v) => {
+                check_step(options.step, 1, path)?;
+                (v, None)
+            }
+            formats::Dataset::Series(s) => {
+                check_step(options.step, s.step_count(), path)?;
+                let v = s.step(options.step).with_context(|| {
+                    format!("loading time step {} of {}", options.step, path.display())
+                })?;
+                (v, Some(s))
+            }
+        };
+        let scene = AnyGridScene::new(&volume, options.intersector);
+        let value_range = volume.value_stats().finite_range;
+        Ok(Self {
+            path: path.to_path_buf(),
+            volume,
+            series,
+            step: options.step,
+            scene,
+            value_range,
+        })
+    }
+
+    /// Wraps an already loaded volume (e.g. a generated sample) as a grid scene.
+    pub fn from_volume(path: &Path, volume: RectilinearVolume, intersector: Intersector) -> Self {
+        let scene = AnyGridScene::new(&volume, intersector);
+        let value_range = volume.value_stats().finite_range;
+        Self {
+            path: path.to_path_buf(),
+            volume,
+            series: None,
+            step: 0,
+            scene,
+            value_range,
+        }
+    }
+
+    pub fn volume(&self) -> &RectilinearVolume {
+        &self.volume
+    }
+
+    pub fn scene(&self) -> &AnyGridScene {
+        &self.scene
+    }
+
+    pub fn scene_mut(&mut self) -> &mut AnyGridScene {
+        &mut self.scene
+    }
+
+    pub fn series(&self) -> Option<&TimeSeries> {
+        self.series.as_ref()
+    }
+
+    fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
+        let Some(series) = &self.series else {
+            return check_step(step, 1, &self.path);
+        };
+        check_step(step, series.step_count(), &self.path)?;
+        if step == self.step {
+            return Ok(());
+        }
+        let v = series
+            .step(step)
+            .with_context(|| format!("loading time step {step} of {}", self.path.display()))?;
+        self.scene.update_volume(&v);
+        self.value_range = v.value_stats().finite_range;
+        self.volume = v;
+        self.step = step;
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Tetrahedral meshes
+
+/// A tetrahedral mesh (one step of a series), the drawn point array and its BVH.
+#[derive(Debug)]
+pub struct TetData {
+    path: PathBuf,
+    /// Step 0 as read (reference topology, all arrays, skipped-cell counts).
+    loaded: LoadedMesh,
+    series: Option<MeshSeries>,
+    step: usize,
+    /// The current step's arrays (step 0: `loaded.mesh.fields`).
+    step_fields: Vec<PointField>,
+    /// The current step moved points away from the reference positions.
+    moved: bool,
+    field: String,
+    scene: TetScene,
+    build_time: Duration,
+}
+
+impl TetData {
+    fn open(path: &Path, options: &SceneOptions) -> anyhow::Result<Self> {
+        let series =
+            if formats::mesh::MeshFormat::from_path(path) == Some(formats::mesh::MeshFormat::Pvd) {
+                Some(formats::mesh::read_pvd(path)?)
+            } else if !path.exists() && formats::series::is_pattern(path) {
+                Some(MeshSeries::from_files(formats::series::expand_pattern(
+                    path,
+                )?))
+            } else {
+                None
+            };
+        let (loaded, count) = match &series {
+            Some(s) => {
+                if s.is_empty() {
+                    bail!("{}: the series has no steps", path.display());
+                }
+                (s.load_step(0)?, s.len())
+            }
+            None => (formats::mesh::read_mesh(path)?, 1),
+        };
+        check_step(options.step, count, path)?;
+        let mesh = &loaded.mesh;
+        let field = match &options.field {
+            Some(f) => f.clone(),
+            None => match mesh.fields.first() {
+                Some(f) => f.name.clone(),
+                None => {
+                    let skipped: Vec<String> = loaded
+                        .skipped_arrays
+                        .iter()
+                        .map(|(n, why)| format!("{n} ({why})"))
+                        .collect();
+                    bail!(
+                        "{}: the mesh has no scalar point array to draw an isosurface of{}",
+                        path.display(),
+                        if skipped.is_empty() {
+                            String::new()
+                        } else {
+                            format!("; skipped arrays: {}", skipped.join(", "))
+                        }
+                    );
+                }
+            },
+        };
+        mesh.require_field(&field)
+            .with_context(|| format!("{}: --field", path.display()))?;
+        let (positions, step_fields) = match (&series, options.step) {
+            (Some(s), step) if step > 0 => {
+                let data = s.load_step_data(step, mesh)?;
+                (data.positions, data.fields)
+            }
+            _ => (None, mesh.fields.clone()),
+        };
+        let values = step_field(&step_fields, &field, options.step, path)?;
+        let moved = positions.is_some();
+        let points = positions.as_deref().unwrap_or(&mesh.points);
+        let t0 = Instant::now();
+        let mut scene = TetScene::from_parts(points, mesh.tets.clone(), values, options.bvh)
+            .with_context(|| format!("{}: building the BVH", path.display()))?;
+        let build_time = t0.elapsed();
+        scene.set_normals(options.normals);
+        scene.set_packet_size(options.packet_rays);
+        Ok(Self {
+            path: path.to_path_buf(),
+            loaded,
+            series,
+            step: options.step,
+            step_fields,
+            moved,
+            field,
+            scene,
+            build_time,
+        })
+    }
+
+    pub fn scene(&self) -> &TetScene {
+        &self.scene
+    }
+
+    pub fn scene_mut(&mut self) -> &mut TetScene {
+        &mut self.scene
+    }
+
+    /// Step 0 as read: all point arrays, the reference topology, skipped cells.
+    pub fn loaded(&self) -> &LoadedMesh {
+        &self.loaded
+    }
+
+    pub fn series(&self) -> Option<&MeshSeries> {
+        self.series.as_ref()
+    }
+
+    /// The drawn point array.
+    pub fn field(&self) -> &str {
+        &self.field
+    }
+
+    /// Names of the point arrays that can be drawn.
+    pub fn field_names(&self) -> Vec<&str> {
+        self.step_fields.iter().map(|f| f.name.as_str()).collect()
+    }
+
+    /// BVH build time at open.
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    /// Range of the drawn array at the current step.
+    pub fn value_range(&self) -> Option<(f64, f64)> {
+        self.step_fields
+            .iter()
+            .find(|f| f.name == self.field)
+            .and_then(PointField::value_range)
+            .map(|(a, b)| (f64::from(a), f64::from(b)))
+    }
+
+    /// Draws another point array: only the BVH's value ranges are refit.
+    pub fn set_field(&mut self, name: &str) -> anyhow::Result<()> {
+        let values = step_field(&self.step_fields, name, self.step, &self.path)?;
+        self.scene.refit_scalars(values)?;
+        self.field = name.to_owned();
+        Ok(())
+    }
+
+    pub fn set_normals(&mut self, normals: TetNormals) {
+        self.scene.set_normals(normals);
+    }
+
+    /// Rays per traversal packet, `1..=256` (256 = 16×16, 4 = 2×2).
+    pub fn set_packet_rays(&mut self, rays: usize) {
+        self.scene.set_packet_size(rays);
+    }
+
+    /// Rebuilds the BVH with other options (e.g. the SAH builder); returns the build time.
+    pub fn rebuild(&mut self, bvh: BvhOptions) -> Duration {
+        let t0 = Instant::now();
+        self.scene.rebuild(bvh);
+        t0.elapsed()
+    }
+
+    fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
+        let Some(series) = &self.series else {
+            return check_step(step, 1, &self.path);
+        };
+        check_step(step, series.len(), &self.path)?;
+        if step == self.step {
+            return Ok(());
+        }
+        let (positions, fields) = if step == 0 {
+            (None, self.loaded.mesh.fields.clone())
+        } else {
+            let d = series.load_step_data(step, &self.loaded.mesh)?;
+            (d.positions, d.fields)
+        };
+        let values = step_field(&fields, &self.field, step, &self.path)?;
+        // Values first (cheap refit of the ranges), then positions if they changed.
+        self.scene.refit_scalars(values)?;
+        match positions {
+            Some(p) => {
+                self.scene.refit_positions(&p)?;
+                self.moved = true;
+            }
+            None if self.moved => {
+                self.scene.refit_positions(&self.loaded.mesh.points)?;
+                self.moved = false;
+            }
+            None => {}
+        }
+        self.step_fields = fields;
+        self.step = step;
+        Ok(())
+    }
+}
+
+fn step_field<'a>(
+    fields: &'a [PointField],
+    name: &str,
+    step: usize,
+    path: &Path,
+) -> anyhow::Result<&'a [f32]> {
+    match fields.iter().find(|f| f.name == name) {
+        Some(f) => Ok(&f.values),
+        None => {
+            let names: Vec<&str> = fields.iter().map(|f| f.name.as_str()).collect();
+            bail!(
+                "{}: time step {step} has no point array \"{name}\" (available: {})",
+                path.display(),
+                names.join(", ")
+            )
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Out-of-core
+
+/// Loader progress of an `.isot` scene (for a level/progress indicator).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OocStatus {
+    /// Levels published for the current isovalues (1 = the top treelet only).
+    pub loaded_levels: usize,
+    pub level_count: usize,
+    pub resident_bytes: u64,
+    /// The loader is idle for the current isovalues.
+    pub finished: bool,
+    /// The memory budget stopped loading at a coarser level.
+    pub budget_limited: bool,
+    /// What stopped the last sweep (a damaged treelet, an I/O error).
+    pub error: Option<String>,
+}
+
+/// An out-of-core `.isot` volume with its loader thread.
+#[derive(Debug)]
+pub struct OocData {
+    path: PathBuf,
+    volume: AnyOocVolume,
+    intersector: Intersector,
+    open_time: Duration,
+}
+
+macro_rules! with_ooc {
+    ($v:expr, $s:ident => $body:expr) => {
+        match $v {
+            AnyOocVolume::U8($s) => $body,
+            AnyOocVolume::I8($s) => $body,
+            AnyOocVolume::U16($s) => $body,
+            AnyOocVolume::I16($s) => $body,
+            AnyOocVolume::U32($s) => $body,
+            AnyOocVolume::I32($s) => $body,
+            AnyOocVolume::F32($s) => $body,
+            AnyOocVolume::F64($s) => $body,
+        }
+    };
+}
+
+impl OocData {
+    fn open(path: &Path, options: &SceneOptions) -> anyhow::Result<Self> {
+        if options.step != 0 {
+            check_step(options.step, 1, path)?;
+        }
+        let t0 = Instant::now();
+        let volume = formats::treelet::open_isot(path, options.ooc)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            volume,
+            intersector: options.intersector,
+            open_time: t0.elapsed(),
+        })
+    }
+
+    pub fn volume(&self) -> &AnyOocVolume {
+        &self.volume
+    }
+
+    pub fn intersector(&self) -> Intersector {
+        self.intersector
+    }
+
+    /// Time to open the file and load the top treelet.
+    pub fn open_time(&self) -> Duration {
+        self.open_time
+    }
+
+    /// The finite value range recorded in the file (the quantizer's range).
+    pub fn value_range(&self) -> Option<(f64, f64)> {
+        let q = &self.volume.meta().quantizer;
+        (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi).then_some((q.lo, q.hi))
+    }
+
+    /// Requests the treelets of `isovalues` (same quantized bucket: no reload).
+    pub fn set_isovalues(&self, isovalues: &[f32]) {
+        self.volume.set_isovalues(isovalues);
+    }
+
+    /// Waits until the loader is idle (finest level the isovalues need, the budget, or an
+    /// error) or `timeout` passes; returns whether it finished. Not from a render thread.
+    pub fn wait_until_finished(&self, timeout: Duration) -> bool {
+        self.volume.wait_until_finished(timeout)
+    }
+
+    pub fn status(&self) -> OocStatus {
+        OocStatus {
+            loaded_levels: self.volume.loaded_levels(),
+            level_count: self.volume.level_count(),
+            resident_bytes: self.volume.resident_bytes(),
+            finished: self.volume.is_finished(),
+            budget_limited: self.volume.budget_limited(),
+            error: self.volume.error().map(|e| e.to_string()),
+        }
+    }
+
+    /// Renders with the levels loaded now (after requesting the frame's isovalues) and
+    /// returns the finest level the frame could reach (0 = coarsest).
+    pub fn render_with_level(
+        &self,
+        camera: &Camera,
+        settings: &RenderSettings,
+        cancel: &AtomicBool,
+    ) -> Option<(Frame, usize)> {
+        self.set_isovalues(&settings.active_isovalues().0);
+        with_ooc!(&self.volume, v => {
+            let scene = v.scene(self.intersector);
+            let frame = render(&scene, camera, settings, cancel)?;
+            Some((frame, scene.level()))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use volume_core::render::Surface;
+
+    fn write_ball(dir: &Path, n: usize) -> PathBuf {
+        let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, n).unwrap();
+        let p = dir.join("ball.vtu");
+        formats::mesh::write_vtu(&p, &mesh).unwrap();
+        p
+    }
+
+    #[test]
+    fn kinds_are_detected_by_name_and_magic() {
+        assert_eq!(detect_kind(Path::new("a.vtu")), SceneKind::Tet);
+        assert_eq!(detect_kind(Path::new("s_%03d.vtk")), SceneKind::Tet);
+        assert_eq!(detect_kind(Path::new("c.pvd")), SceneKind::Tet);
+        assert_eq!(detect_kind(Path::new("v.isot")), SceneKind::Ooc);
+        assert_eq!(detect_kind(Path::new("v.nrrd")), SceneKind::Grid);
+    }
+
+    #[test]
+    fn a_mesh_opens_renders_and_switches_fields() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write_ball(dir.path(), 8);
+        let mut scene = open_scene(&p, &SceneOptions::default()).unwrap();
+        assert_eq!(scene.kind(), SceneKind::Tet);
+        let t = scene.as_tet().unwrap();
+        assert_eq!(t.field(), "distance");
+        t.scene().validate().unwrap();
+        let (lo, hi) = scene.value_range().unwrap();
+        assert!(lo >= 0.0 && hi <= 0.9 * 3f64.sqrt() && hi > lo);
+        let camera = Camera::orbit(&scene.world_bounds(), 30.0, 20.0, 40.0);
+        let settings = RenderSettings {
+            width: 32,
+            height: 32,
+            surfaces: vec![Surface::new(0.5, [1.0; 3])],
+            ..RenderSettings::default()
+        };
+        let f = scene
+            .render(&camera, &settings, &AtomicBool::new(false))
+            .unwrap();
+        assert!(f.depth.iter().any(|d| d.is_finite()));
+        let t = scene.as_tet_mut().unwrap();
+        t.set_field("gaussians").unwrap();
+        assert!(
+            t.set_field("nope")
+                .unwrap_err()
+                .to_string()
+                .contains("distance")
+        );
+        t.scene().validate().unwrap();
+        assert!(scene.set_step(1).is_err());
+    }
+
+    #[test]
+    fn missing_fields_and_steps_are_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write_ball(dir.path(), 4);
+        let e = open_scene(
+            &p,
+            &SceneOptions {
+                field: Some("pressure".into()),
+                ..SceneOptions::default()
+            },
+        )
+        .unwrap_err();
+        let msg = format!("{e:#}");
+        assert!(
+            msg.contains("pressure") && msg.contains("distance"),
+            "{msg}"
+        );
+        let e = open_scene(
+            &p,
+            &SceneOptions {
+                step: 2,
+                ..SceneOptions::default()
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("single"), "{e}");
+    }
+}
