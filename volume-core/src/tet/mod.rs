@@ -18,6 +18,7 @@ pub mod bvh;
 pub mod mesh;
 pub mod mt;
 pub mod scene;
+mod simd;
 pub mod steps;
 pub mod traverse;
 

@@ -33,10 +33,14 @@
 //! `intersection` ray–isopolygon tests, `extraction` isopolygon extractions, `node` and
 //! `leaf` visits.
 
+use std::cell::RefCell;
+
 use glam::Vec3;
+use wide::f32x8;
 
 use super::bvh::{BvhNode, MAX_DEPTH};
 use super::mt::{self, RaySpace};
+use super::simd::{LANES, RayBlock, poly8, slab8};
 use super::scene::TetScene;
 use crate::math::{Ray, float::gamma_f32};
 use crate::render::Stats;
@@ -46,6 +50,7 @@ pub const MAX_PACKET: usize = 256;
 /// Rays per sub-frustum (a 4×4 block of a Morton-ordered tile).
 const GROUP: usize = 16;
 const MAX_GROUPS: usize = MAX_PACKET / GROUP;
+const MAX_BLOCKS: usize = MAX_PACKET / LANES;
 
 /// A hit before shading: ray parameter, isovalue index and tet (leaf order).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -62,7 +67,7 @@ fn iso_active(lo: f32, hi: f32, iso: &[f32]) -> bool {
 
 /// Conservative slab test of `[t0, t1]` against the node's spatial box (as [`crate::math::Aabb`]).
 #[inline]
-fn slab(n: &BvhNode, ray: &Ray, t0: f32, t1: f32) -> bool {
+pub(crate) fn slab(n: &BvhNode, ray: &Ray, t0: f32, t1: f32) -> bool {
     let a = (n.lo.truncate() - ray.origin) * ray.inv_dir;
     let b = (n.hi.truncate() - ray.origin) * ray.inv_dir;
     let near = a.min(b);
@@ -93,6 +98,7 @@ impl Frustum {
         t1: f32::INFINITY,
     };
 
+    #[cfg(test)]
     fn new(rays: &[Ray], t_min: &[f32], t_max: &[f32]) -> Self {
         let mut f = Frustum {
             omin: Vec3::INFINITY,
@@ -126,6 +132,64 @@ impl Frustum {
             }
         }
         // NaN ranges: never cull.
+        if f.t0.is_nan() || f.t1.is_nan() {
+            f.t0 = f32::NEG_INFINITY;
+            f.t1 = f32::INFINITY;
+        }
+        f
+    }
+
+    /// The frustum of the rays of `blocks` (padding lanes repeat lane 0; `t1` holds their
+    /// `t_max`, `-inf` in padding lanes), computed 8 lanes at a time. Same result as
+    /// [`Frustum::new`] on the rays.
+    fn from_blocks(blocks: &[RayBlock], t1: &[f32x8]) -> Self {
+        let mut omin = blocks[0].o;
+        let mut omax = blocks[0].o;
+        let mut imin = blocks[0].inv;
+        let mut imax = blocks[0].inv;
+        let mut t0 = blocks[0].t0;
+        let mut tm = t1[0];
+        let mut bad_o = 0u32;
+        let mut bad_i = [0u32; 3];
+        for (b, t) in blocks.iter().zip(t1) {
+            for a in 0..3 {
+                omin[a] = omin[a].min(b.o[a]);
+                omax[a] = omax[a].max(b.o[a]);
+                imin[a] = imin[a].min(b.inv[a]);
+                imax[a] = imax[a].max(b.inv[a]);
+                bad_o |= !b.o[a].is_finite().to_bitmask();
+                bad_i[a] |= !b.inv[a].is_finite().to_bitmask();
+            }
+            t0 = t0.min(b.t0);
+            tm = tm.max(*t);
+        }
+        // Branch-free folds that skip NaN lanes (as `f32::min`/`max` do).
+        let hmin = |v: f32x8| {
+            v.to_array()
+                .into_iter()
+                .fold(f32::INFINITY, |m, x| if x < m { x } else { m })
+        };
+        let hmax = |v: f32x8| {
+            v.to_array()
+                .into_iter()
+                .fold(f32::NEG_INFINITY, |m, x| if x > m { x } else { m })
+        };
+        let mut f = Frustum {
+            omin: Vec3::from_array(omin.map(hmin)),
+            omax: Vec3::from_array(omax.map(hmax)),
+            imin: Vec3::from_array(imin.map(hmin)),
+            imax: Vec3::from_array(imax.map(hmax)),
+            axis: [true; 3],
+            t0: hmin(t0),
+            t1: hmax(tm),
+        };
+        for a in 0..3 {
+            // Zero direction components have infinite reciprocals; mixed signs would make
+            // the reciprocal interval span infinity.
+            f.axis[a] = bad_o & 0xff == 0
+                && bad_i[a] & 0xff == 0
+                && !(f.imin[a] < 0.0 && f.imax[a] > 0.0);
+        }
         if f.t0.is_nan() || f.t1.is_nan() {
             f.t0 = f32::NEG_INFINITY;
             f.t1 = f32::INFINITY;
@@ -290,27 +354,185 @@ impl TetScene {
         let len = rays.len();
         assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
         out[..len].fill(None);
-        if len == 0 || iso.is_empty() || self.tets.is_empty() {
+        if S::ENABLED {
+            for _ in 0..len {
+                stats.ray();
+            }
+        }
+        // Implicit culling at the root first: a packet that cannot see any isovalue costs
+        // nothing more.
+        let root = self.bvh.root();
+        if len == 0 || self.tets.is_empty() || !iso_active(root.lo.w, root.hi.w, iso) {
             return;
         }
-        let mut rs = [RaySpace::INVALID; MAX_PACKET];
-        let mut best = [0f32; MAX_PACKET];
+        if len <= 4 {
+            self.trace_standard(rays, t_min, t_max, iso, out, stats);
+        } else {
+            PACKET_SCRATCH.with(|cell| match cell.try_borrow_mut() {
+                Ok(mut sc) => self.trace_large(rays, t_min, t_max, iso, out, stats, &mut sc),
+                // Re-entered from the same thread (not done by the renderer): fresh buffers.
+                Err(_) => self.trace_large(
+                    rays,
+                    t_min,
+                    t_max,
+                    iso,
+                    out,
+                    stats,
+                    &mut PacketScratch::new(),
+                ),
+            });
+        }
+    }
+
+    /// The 2×2 baseline of Table 8.4 (standard packet traversal): every ray is tested at
+    /// every node with the scalar slab test, the packet descends if any ray hits.
+    fn trace_standard<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [Option<RawHit>],
+        stats: &mut S,
+    ) {
+        let len = rays.len();
+        let mut rs = [RaySpace::INVALID; 4];
+        let mut best = [0f32; 4];
         for i in 0..len {
-            stats.ray();
             rs[i] = RaySpace::new(rays[i].origin, rays[i].dir);
             best[i] = t_max[i];
         }
-        // Sub-frusta of 16 consecutive rays: the first-active search and the isopolygon
-        // culling skip whole groups that miss (a refinement of steps 3–5). The packet
-        // frustum is their union.
-        let mut groups = [Frustum::NONE; MAX_GROUPS];
-        for (g, start) in (0..len).step_by(GROUP).enumerate() {
-            let end = (start + GROUP).min(len);
-            groups[g] = Frustum::new(&rays[start..end], &t_min[start..end], &t_max[start..end]);
+        let nodes = &self.bvh.nodes;
+        let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
+        let mut sp = 0;
+        let (mut node, mut first) = (0u32, 0usize);
+        'outer: loop {
+            'visit: {
+                let n = &nodes[node as usize];
+                stats.node();
+                if !iso_active(n.lo.w, n.hi.w, iso) {
+                    break 'visit;
+                }
+                stats.box_test((len - first) as u64);
+                match (first..len).find(|&i| slab(n, &rays[i], t_min[i], best[i])) {
+                    Some(i) => first = i,
+                    None => break 'visit,
+                }
+                if n.is_leaf() {
+                    stats.leaf();
+                    self.leaf_standard(n, &rs[..len], t_min, &mut best, first, out, iso, stats);
+                    break 'visit;
+                }
+                let (near, far) = if rays[first].dir[n.axis as usize] >= 0.0 {
+                    (node + 1, n.link)
+                } else {
+                    (n.link, node + 1)
+                };
+                stack[sp] = (far, first as u16);
+                sp += 1;
+                node = near;
+                continue 'outer;
+            }
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            (node, first) = (stack[sp].0, stack[sp].1 as usize);
         }
-        let fr = Frustum::union(&groups[..len.div_ceil(GROUP)]);
-        let groups = &groups[..len.div_ceil(GROUP)];
-        let standard = len <= 4;
+    }
+
+    /// Leaf of the 2×2 baseline: one extraction per tet and isovalue for the packet, then
+    /// every ray from `first` on.
+    #[allow(clippy::too_many_arguments)]
+    fn leaf_standard<S: Stats>(
+        &self,
+        n: &BvhNode,
+        rs: &[RaySpace],
+        t_min: &[f32],
+        best: &mut [f32; 4],
+        first: usize,
+        out: &mut [Option<RawHit>],
+        iso: &[f32],
+        stats: &mut S,
+    ) {
+        for ti in n.link..n.link + n.count {
+            let ids = &self.tets[ti as usize];
+            let v = ids.map(|i| self.verts[i as usize]);
+            if v.iter().any(|p| p.w.is_nan()) {
+                continue;
+            }
+            let lo = v[0].w.min(v[1].w).min(v[2].w.min(v[3].w));
+            let hi = v[0].w.max(v[1].w).max(v[2].w.max(v[3].w));
+            for (s, &c) in iso.iter().enumerate() {
+                if !(lo <= c && c <= hi) {
+                    continue;
+                }
+                stats.extraction();
+                let Some(poly) = mt::extract(&v, ids, c) else {
+                    continue;
+                };
+                for i in first..rs.len() {
+                    stats.intersection();
+                    if let Some(t) = mt::intersect(&rs[i], &poly)
+                        && t >= t_min[i]
+                        && t <= best[i]
+                        && out[i].is_none_or(|h| t < h.t)
+                    {
+                        best[i] = t;
+                        out[i] = Some(RawHit {
+                            t,
+                            surface: s as u32,
+                            tet: ti,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// The large-packet traversal (module docs) on 8-ray SIMD blocks.
+    #[allow(clippy::too_many_arguments)]
+    fn trace_large<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [Option<RawHit>],
+        stats: &mut S,
+        sc: &mut PacketScratch,
+    ) {
+        let len = rays.len();
+        let nb = len.div_ceil(LANES);
+        let ng = len.div_ceil(GROUP);
+        let PacketScratch {
+            blocks,
+            best,
+            groups,
+        } = sc;
+        let blocks = &mut blocks[..nb];
+        let best = &mut best[..nb];
+        for (b, (blk, bt)) in blocks.iter_mut().zip(best.iter_mut()).enumerate() {
+            let (s, e) = (b * LANES, ((b + 1) * LANES).min(len));
+            *blk = RayBlock::new(&rays[s..e], &t_min[s..e]);
+            *bt = f32x8::new(std::array::from_fn(|l| {
+                if s + l < e {
+                    t_max[s + l]
+                } else {
+                    f32::NEG_INFINITY
+                }
+            }));
+        }
+        for (g, fr) in groups[..ng].iter_mut().enumerate() {
+            let (s, e) = (g * GROUP / LANES, ((g + 1) * GROUP / LANES).min(nb));
+            *fr = Frustum::from_blocks(&blocks[s..e], &best[s..e]);
+        }
+        let groups = &groups[..ng];
+        let fr = Frustum::union(groups);
+        let root = self.bvh.root();
+        if fr.misses(root.lo.truncate(), root.hi.truncate()) {
+            return;
+        }
         let nodes = &self.bvh.nodes;
         let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
         let mut sp = 0;
@@ -324,63 +546,47 @@ impl TetScene {
                     if !iso_active(n.lo.w, n.hi.w, iso) {
                         break 'visit;
                     }
-                    if standard {
-                        // 2×2 baseline: every ray against every node.
-                        stats.box_test((len - first) as u64);
-                        let hits = (first..len).filter(|&i| slab(n, &rays[i], t_min[i], best[i]));
-                        match hits.min() {
+                    // Speculative first-active descent: one ray.
+                    stats.box_test(1);
+                    let bf = best[first / LANES].as_array()[first % LANES];
+                    if !slab(n, &rays[first], t_min[first], bf) {
+                        // Interval frustum test of the whole packet.
+                        stats.box_test(1);
+                        let (lo, hi) = (n.lo.truncate(), n.hi.truncate());
+                        if fr.misses(lo, hi) {
+                            break 'visit;
+                        }
+                        // First-active tracking, 8 rays at a time, skipping sub-frusta.
+                        let mut found = None;
+                        let mut i = first + 1;
+                        while i < len {
+                            let g = i / GROUP;
+                            if ng > 1 {
+                                stats.box_test(1);
+                                if groups[g].misses(lo, hi) {
+                                    i = (g + 1) * GROUP;
+                                    continue;
+                                }
+                            }
+                            let b = i / LANES;
+                            let e = ((b + 1) * LANES).min(len);
+                            stats.box_test((e - i) as u64);
+                            let m = slab8(n, &blocks[b], best[b]) & (!0u32 << (i % LANES));
+                            if m != 0 {
+                                found = Some(b * LANES + m.trailing_zeros() as usize);
+                                break;
+                            }
+                            i = e;
+                        }
+                        match found {
                             Some(i) => first = i,
                             None => break 'visit,
-                        }
-                    } else {
-                        stats.box_test(1);
-                        if !slab(n, &rays[first], t_min[first], best[first]) {
-                            stats.box_test(1);
-                            if fr.misses(n.lo.truncate(), n.hi.truncate()) {
-                                break 'visit;
-                            }
-                            let mut found = None;
-                            let mut i = first + 1;
-                            'search: while i < len {
-                                let g = i / GROUP;
-                                let g_end = ((g + 1) * GROUP).min(len);
-                                if len > GROUP {
-                                    stats.box_test(1);
-                                    if groups[g].misses(n.lo.truncate(), n.hi.truncate()) {
-                                        i = g_end;
-                                        continue;
-                                    }
-                                }
-                                while i < g_end {
-                                    stats.box_test(1);
-                                    if slab(n, &rays[i], t_min[i], best[i]) {
-                                        found = Some(i);
-                                        break 'search;
-                                    }
-                                    i += 1;
-                                }
-                            }
-                            match found {
-                                Some(i) => first = i,
-                                None => break 'visit,
-                            }
                         }
                     }
                 }
                 if n.is_leaf() {
                     stats.leaf();
-                    self.leaf_packet(
-                        n,
-                        &rs[..len],
-                        &t_min[..len],
-                        &mut best[..len],
-                        first,
-                        &fr,
-                        groups,
-                        out,
-                        iso,
-                        stats,
-                    );
+                    self.leaf_large(n, rays, t_min, blocks, best, first, &fr, groups, out, iso, stats);
                     break 'visit;
                 }
                 // Implicit descent: geometric tests only at bifurcation nodes.
@@ -397,7 +603,7 @@ impl TetScene {
                     (false, false) => break 'visit,
                     (true, false) | (false, true) => {
                         node = if la { l } else { r };
-                        needs_test = standard;
+                        needs_test = false;
                     }
                     (true, true) => {
                         let (near, far) = if rays[first].dir[n.axis as usize] >= 0.0 {
@@ -422,13 +628,18 @@ impl TetScene {
         }
     }
 
+    /// Leaf of the large-packet traversal: per tet an isorange test per isovalue, the
+    /// isopolygon extracted on the fly, culled against the packet and sub-frusta (§8.2.3),
+    /// then tested against the active rays 8 at a time.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn leaf_packet<S: Stats>(
+    fn leaf_large<S: Stats>(
         &self,
         n: &BvhNode,
-        rs: &[RaySpace],
+        rays: &[Ray],
         t_min: &[f32],
-        best: &mut [f32],
+        blocks: &[RayBlock],
+        best: &mut [f32x8],
         first: usize,
         fr: &Frustum,
         groups: &[Frustum],
@@ -436,6 +647,7 @@ impl TetScene {
         iso: &[f32],
         stats: &mut S,
     ) {
+        let len = rays.len();
         for ti in n.link..n.link + n.count {
             let ids = &self.tets[ti as usize];
             let v = ids.map(|i| self.verts[i as usize]);
@@ -453,34 +665,148 @@ impl TetScene {
                     continue;
                 };
                 let (plo, phi) = poly.bounds();
-                if rs.len() > 4 && fr.misses(plo, phi) {
+                if fr.misses(plo, phi) {
                     continue;
                 }
+                let hit = |t: f32| RawHit {
+                    t,
+                    surface: s as u32,
+                    tet: ti,
+                };
                 let mut i = first;
-                while i < rs.len() {
+                while i < len {
                     let g = i / GROUP;
-                    let g_end = ((g + 1) * GROUP).min(rs.len());
-                    if rs.len() > GROUP && groups[g].misses(plo, phi) {
-                        i = g_end;
+                    if groups.len() > 1 && groups[g].misses(plo, phi) {
+                        i = (g + 1) * GROUP;
                         continue;
                     }
-                    for i in i..g_end {
-                        stats.intersection();
-                        if let Some(t) = mt::intersect(&rs[i], &poly)
-                            && t >= t_min[i]
-                            && t <= best[i]
-                            && out[i].is_none_or(|h| t < h.t)
-                        {
-                            best[i] = t;
-                            out[i] = Some(RawHit {
-                                t,
-                                surface: s as u32,
-                                tet: ti,
-                            });
+                    let b = i / LANES;
+                    let e = ((b + 1) * LANES).min(len);
+                    if S::ENABLED {
+                        for _ in i..e {
+                            stats.intersection();
                         }
                     }
-                    i = g_end;
+                    let blk = &blocks[b];
+                    if blk.uniform {
+                        let (t, m) = poly8(blk, &poly, best[b]);
+                        let mut m = m & (!0u32 << (i % LANES));
+                        if m != 0 {
+                            let t = t.to_array();
+                            let bb = best[b].as_mut_array();
+                            while m != 0 {
+                                let l = m.trailing_zeros() as usize;
+                                m &= m - 1;
+                                let r = b * LANES + l;
+                                if out[r].is_none_or(|h| t[l] < h.t) {
+                                    bb[l] = t[l];
+                                    out[r] = Some(hit(t[l]));
+                                }
+                            }
+                        }
+                    } else {
+                        // Mixed ray-space axes or invalid rays: the scalar test per ray.
+                        let bb = best[b].as_mut_array();
+                        for r in i..e {
+                            let rs = RaySpace::new(rays[r].origin, rays[r].dir);
+                            let l = r % LANES;
+                            if let Some(t) = mt::intersect(&rs, &poly)
+                                && t >= t_min[r]
+                                && t <= bb[l]
+                                && out[r].is_none_or(|h| t < h.t)
+                            {
+                                bb[l] = t;
+                                out[r] = Some(hit(t));
+                            }
+                        }
+                    }
+                    i = e;
                 }
+            }
+        }
+    }
+}
+
+/// Per-thread buffers of the large-packet traversal (no allocation or large clearing per
+/// packet: only the blocks in use are written).
+pub(crate) struct PacketScratch {
+    blocks: Box<[RayBlock; MAX_BLOCKS]>,
+    best: Box<[f32x8; MAX_BLOCKS]>,
+    groups: Box<[Frustum; MAX_GROUPS]>,
+}
+
+impl PacketScratch {
+    fn new() -> Self {
+        Self {
+            blocks: Box::new([RayBlock::EMPTY; MAX_BLOCKS]),
+            best: Box::new([f32x8::ZERO; MAX_BLOCKS]),
+            groups: Box::new([Frustum::NONE; MAX_GROUPS]),
+        }
+    }
+}
+
+thread_local! {
+    static PACKET_SCRATCH: RefCell<PacketScratch> = RefCell::new(PacketScratch::new());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The SIMD group frustum equals the per-ray one (zero and mixed-sign directions,
+    /// partial blocks, infinite ranges).
+    #[test]
+    fn frustum_from_blocks_equals_per_ray_frustum() {
+        let mut seed = 3u64;
+        let mut f = move || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        for trial in 0..500 {
+            let n = 1 + trial % 16;
+            let rays: Vec<Ray> = (0..n)
+                .map(|i| {
+                    let mut d = Vec3::new(f() + 2.0, f(), 0.5 * f() - 1.0);
+                    if trial % 3 == 0 && i == n / 2 {
+                        d.y = 0.0;
+                    }
+                    Ray::new(Vec3::new(f(), f(), 5.0 + f()), d)
+                })
+                .collect();
+            let t0: Vec<f32> = (0..n).map(|_| f()).collect();
+            let t1: Vec<f32> = (0..n)
+                .map(|i| if i % 4 == 0 { f32::INFINITY } else { 3.0 + f() })
+                .collect();
+            let blocks: Vec<RayBlock> = (0..n)
+                .step_by(LANES)
+                .map(|s| {
+                    let e = (s + LANES).min(n);
+                    RayBlock::new(&rays[s..e], &t0[s..e])
+                })
+                .collect();
+            let best: Vec<f32x8> = (0..n)
+                .step_by(LANES)
+                .map(|s| {
+                    f32x8::new(std::array::from_fn(|l| {
+                        if s + l < n {
+                            t1[s + l]
+                        } else {
+                            f32::NEG_INFINITY
+                        }
+                    }))
+                })
+                .collect();
+            let a = Frustum::new(&rays, &t0, &t1);
+            let b = Frustum::from_blocks(&blocks, &best);
+            assert_eq!(
+                (a.omin, a.omax, a.imin, a.imax, a.axis, a.t0, a.t1),
+                (b.omin, b.omax, b.imin, b.imax, b.axis, b.t0, b.t1),
+                "trial {trial}"
+            );
+            if trial % 3 == 0 {
+                assert!(!b.axis[1]);
             }
         }
     }
