@@ -14,9 +14,14 @@
 //!    LOD cells with the roots of the finer treelets below, so one level's worth of root
 //!    ranges is all that is kept between levels.
 //!
-//! Memory: the finest data is read in place (a memory map pages it in and out); the coarser
-//! LOD levels are held in memory (at most 1/8 of the input after the first 2× step in all
-//! three axes). Treelets are encoded in parallel batches and handed to the sink in order.
+//! Memory is bounded independently of the input size: the finest data is read in place
+//! (a memory map pages it in and out) in two sequential passes. Pass 1 walks the input
+//! z-plane by z-plane, computing the value range and streaming the planes through a
+//! cascade of decimation stages ([`HalveStage`]: three planes each), so only the coarse LOD
+//! levels themselves are kept (about `input / 2^height`, 1/512 at the default height 9).
+//! Pass 2 encodes the finest treelets in index order, which is z-slab order, in parallel
+//! batches handed to the sink in order, then the coarse levels from memory. `progress`
+//! counts input voxels read over both passes (`2 × voxels` in all).
 
 use std::time::{Duration, Instant};
 
@@ -46,7 +51,8 @@ pub struct BuildReport {
 
 /// Builds the treelets of `voxels` (x fastest, on `grid`) with treelets of
 /// `treelet_height` node levels and hands them to `sink`. `progress(done, total)` is called
-/// after each batch with treelet counts.
+/// after each input plane (pass 1) and each batch (pass 2) with input voxels read so far
+/// over both passes (`total = 2 × voxels`).
 pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
     grid: &Grid,
     voxels: &[T],
@@ -69,9 +75,24 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
             actual: voxels.len() as u64,
         });
     }
-    let (lo, hi) = ValueStats::compute(voxels)
-        .finite_range
-        .unwrap_or((0.0, 0.0));
+    // Pass 1, one z-plane of the input at a time: the finite value range (for the
+    // quantizer) and the coarse LOD levels through the streamed decimation cascade.
+    let plane_len = (dims[0] * dims[1]) as usize;
+    let fine_total = layout.voxel_count();
+    let work_total = 2 * fine_total;
+    let mut pyramid = Pyramid::<T>::new(&layout);
+    let mut range: Option<(f64, f64)> = None;
+    for (z, plane) in voxels.chunks_exact(plane_len).enumerate() {
+        let r = ValueStats::compute(plane).finite_range;
+        range = match (range, r) {
+            (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+            (x, None) | (None, x) => x,
+        };
+        pyramid.feed(z as u64, plane);
+        progress((z as u64 + 1) * plane_len as u64, work_total);
+    }
+    let mut lods = pyramid.finish();
+    let (lo, hi) = range.unwrap_or((0.0, 0.0));
     let quantizer = Quantizer::for_type(T::TYPE, lo, hi);
     let meta = OocMeta {
         grid: grid.clone(),
@@ -84,32 +105,6 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
     let n = layout.level_count();
     let total = layout.treelet_count();
 
-    // LOD pyramid, coarse levels only (the finest is `voxels`).
-    let mut lods: Vec<Vec<T>> = vec![Vec::new(); n - 1];
-    {
-        let mut cur: Option<Vec<T>> = None;
-        let mut cur_dims = dims;
-        let mut factor = [1u64; 3];
-        for l in (0..n - 1).rev() {
-            let target = layout.level(l).lod_factor;
-            while factor != target {
-                let halve = [0, 1, 2].map(|a| factor[a] < target[a]);
-                let src: &[T] = cur.as_deref().unwrap_or(voxels);
-                let (next, next_dims) = halve_lod(src, cur_dims, halve);
-                for a in 0..3 {
-                    if halve[a] {
-                        factor[a] *= 2;
-                    }
-                }
-                cur = Some(next);
-                cur_dims = next_dims;
-            }
-            debug_assert_eq!(cur_dims, layout.level(l).lod_dims);
-            lods[l].clone_from(cur.as_ref().expect("coarse level has a factor > 1"));
-        }
-    }
-
-    let mut done = 0u64;
     let mut bytes = 0u64;
     let mut child_roots: Option<Vec<[T; 2]>> = None;
     for l in (0..n).rev() {
@@ -118,6 +113,7 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
         let count = lv.treelet_count();
         let mut roots = Vec::with_capacity(count as usize);
         let mut first = 0u64;
+        let mut done = 0u64;
         while first < count {
             let last = (first + BATCH).min(count);
             let batch: Vec<([T; 2], Vec<u8>)> = (first..last)
@@ -130,7 +126,10 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
                 roots.push(root_range);
             }
             done += last - first;
-            progress(done, total);
+            // Pass 2 reads the finest level once more; coarse levels are tiny.
+            if l == n - 1 {
+                progress(fine_total + fine_total * done / count, work_total);
+            }
             first = last;
         }
         child_roots = Some(roots);
@@ -138,6 +137,7 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
             lods[l] = Vec::new();
         }
     }
+    progress(work_total, work_total);
     Ok(BuildReport {
         meta: meta.clone(),
         treelets: total,
@@ -237,23 +237,203 @@ impl<T: Voxel> RangeCtx<'_, T> {
     }
 }
 
-/// One 2× decimation step along the axes in `halve` (see the module docs).
+/// The coarse LOD levels built in one streamed pass: a cascade of [`HalveStage`]s fed the
+/// input's z-planes; a level's planes are kept when its stage emits them. Memory: three
+/// planes per stage plus the coarse levels themselves (level `L` has `1 / 2^(height ·
+/// (levels − 1 − L))` of the input's cells, so about `input / 2^height` in all).
+struct Pyramid<T: Voxel> {
+    stages: Vec<HalveStage<T>>,
+    /// `(stage, level)`: the output of `stage` is LOD level `level`.
+    keep: Vec<(usize, usize)>,
+    levels: Vec<Vec<T>>,
+}
+
+impl<T: Voxel> Pyramid<T> {
+    fn new(layout: &TreeletLayout) -> Self {
+        let n = layout.level_count();
+        let mut stages = Vec::new();
+        let mut keep = Vec::new();
+        let mut levels = vec![Vec::new(); n - 1];
+        let mut dims = layout.dims();
+        let mut factor = [1u64; 3];
+        for l in (0..n - 1).rev() {
+            let target = layout.level(l).lod_factor;
+            while factor != target {
+                let halve = [0, 1, 2].map(|a| factor[a] < target[a]);
+                let stage = HalveStage::new(dims, halve);
+                dims = stage.ddims;
+                stages.push(stage);
+                for a in 0..3 {
+                    if halve[a] {
+                        factor[a] *= 2;
+                    }
+                }
+            }
+            debug_assert_eq!(dims, layout.level(l).lod_dims);
+            keep.push((stages.len() - 1, l));
+            levels[l] = Vec::with_capacity((dims[0] * dims[1] * dims[2]) as usize);
+        }
+        Self {
+            stages,
+            keep,
+            levels,
+        }
+    }
+
+    /// Feeds finest plane `z` (in order).
+    fn feed(&mut self, z: u64, plane: &[T]) {
+        if self.stages.is_empty() {
+            return;
+        }
+        let mut input = vec![(z, plane.to_vec())];
+        for s in 0..self.stages.len() {
+            let mut out = Vec::new();
+            for (z, p) in input.drain(..) {
+                self.stages[s].push(z, p, &mut out);
+            }
+            let first = self.stages[s].next_out - out.len() as u64;
+            for &(_, l) in self.keep.iter().filter(|(ks, _)| *ks == s) {
+                for p in &out {
+                    self.levels[l].extend_from_slice(p);
+                }
+            }
+            input = out
+                .into_iter()
+                .enumerate()
+                .map(|(i, p)| (first + i as u64, p))
+                .collect();
+            if input.is_empty() {
+                return;
+            }
+        }
+    }
+
+    /// The coarse LOD levels (index = treelet level; the finest is not here).
+    fn finish(self) -> Vec<Vec<T>> {
+        debug_assert!(self.stages.iter().all(|s| s.next_out == s.ddims[2]));
+        self.levels
+    }
+}
+
+/// One 2× decimation step along the axes in `halve` (see the module docs), on a whole
+/// volume; the build streams the same arithmetic plane by plane ([`HalveStage`]). The
+/// tests' independent pyramid.
+#[cfg(test)]
 pub(crate) fn halve_lod<T: Voxel>(
     src: &[T],
     sdims: [u64; 3],
     halve: [bool; 3],
 ) -> (Vec<T>, [u64; 3]) {
-    let ddims = [0, 1, 2].map(|a| {
-        if halve[a] {
-            (sdims[a] - 1).div_ceil(2) + 1
-        } else {
-            sdims[a]
+    let mut stage = HalveStage::new(sdims, halve);
+    let plane = (sdims[0] * sdims[1]) as usize;
+    let ddims = stage.ddims;
+    let mut out = Vec::with_capacity((ddims[0] * ddims[1] * ddims[2]) as usize);
+    let mut planes = Vec::new();
+    for (z, p) in src.chunks_exact(plane).enumerate() {
+        stage.push(z as u64, p.to_vec(), &mut planes);
+        for o in planes.drain(..) {
+            out.extend_from_slice(&o);
         }
-    });
+    }
+    (out, ddims)
+}
+
+/// One 2× decimation step fed z-planes in order: it keeps at most three input planes and
+/// emits each output plane as soon as its last tap has arrived, so a pyramid of stages
+/// builds the coarse LOD levels in one pass over the input with bounded memory.
+#[derive(Debug)]
+pub(crate) struct HalveStage<T: Voxel> {
+    sdims: [u64; 3],
+    ddims: [u64; 3],
+    halve: [bool; 3],
+    /// Received planes still needed, z ascending.
+    ring: std::collections::VecDeque<(u64, Vec<T>)>,
+    received: u64,
+    next_out: u64,
+}
+
+impl<T: Voxel> HalveStage<T> {
+    pub(crate) fn new(sdims: [u64; 3], halve: [bool; 3]) -> Self {
+        let ddims = [0, 1, 2].map(|a| {
+            if halve[a] {
+                (sdims[a] - 1).div_ceil(2) + 1
+            } else {
+                sdims[a]
+            }
+        });
+        Self {
+            sdims,
+            ddims,
+            halve,
+            ring: std::collections::VecDeque::with_capacity(4),
+            received: 0,
+            next_out: 0,
+        }
+    }
+
+    /// Input plane of output plane `k` (the filter centre).
+    fn center(&self, k: u64) -> u64 {
+        if self.halve[2] {
+            (2 * k).min(self.sdims[2] - 1)
+        } else {
+            k
+        }
+    }
+
+    /// Input planes `[below, centre, above]` (clamped) that output plane `k` reads.
+    fn taps(&self, k: u64) -> [u64; 3] {
+        let c = self.center(k);
+        if self.halve[2] {
+            [c.saturating_sub(1), c, (c + 1).min(self.sdims[2] - 1)]
+        } else {
+            [c; 3]
+        }
+    }
+
+    /// Adds input plane `z` (the next in order) and appends the output planes it completes.
+    pub(crate) fn push(&mut self, z: u64, plane: Vec<T>, out: &mut Vec<Vec<T>>) {
+        debug_assert_eq!(z, self.received, "planes arrive in order");
+        debug_assert_eq!(plane.len() as u64, self.sdims[0] * self.sdims[1]);
+        self.ring.push_back((z, plane));
+        self.received = z + 1;
+        while self.next_out < self.ddims[2] && self.taps(self.next_out)[2] < self.received {
+            let zs = self.taps(self.next_out);
+            let find = |z: u64| {
+                self.ring
+                    .iter()
+                    .find(|(rz, _)| *rz == z)
+                    .map(|(_, p)| p.as_slice())
+                    .expect("tap plane kept in the ring")
+            };
+            let planes = [find(zs[0]), find(zs[1]), find(zs[2])];
+            let mut o = vec![T::default(); (self.ddims[0] * self.ddims[1]) as usize];
+            halve_plane(planes, self.sdims, self.ddims, self.halve, &mut o);
+            out.push(o);
+            self.next_out += 1;
+            let keep_from = if self.next_out < self.ddims[2] {
+                self.taps(self.next_out)[0]
+            } else {
+                u64::MAX
+            };
+            while self.ring.front().is_some_and(|(rz, _)| *rz < keep_from) {
+                self.ring.pop_front();
+            }
+        }
+    }
+}
+
+/// One output plane of a decimation step from its (clamped) input planes `[z − 1, z, z + 1]`
+/// (only the middle one is read when z is not halved).
+fn halve_plane<T: Voxel>(
+    planes: [&[T]; 3],
+    sdims: [u64; 3],
+    ddims: [u64; 3],
+    halve: [bool; 3],
+    out: &mut [T],
+) {
     let sd = sdims.map(|d| d as usize);
     let dd = ddims.map(|d| d as usize);
-    let mut out = vec![T::default(); dd[0] * dd[1] * dd[2]];
-    // Taps per axis: (offset, weight).
+    // Taps per axis: (offset, weight); z taps index `planes`.
     let taps = |a: usize| -> &'static [(isize, f64)] {
         if halve[a] {
             &[(-1, 0.25), (0, 0.5), (1, 0.25)]
@@ -265,39 +445,33 @@ pub(crate) fn halve_lod<T: Voxel>(
     let center = |a: usize, d: usize| if halve[a] { (2 * d).min(sd[a] - 1) } else { d };
     let clampi =
         |a: usize, c: usize, o: isize| (c as isize + o).clamp(0, sd[a] as isize - 1) as usize;
-    out.par_chunks_mut(dd[0] * dd[1])
-        .enumerate()
-        .for_each(|(k, slice)| {
-            let cz = center(2, k);
-            for j in 0..dd[1] {
-                let cy = center(1, j);
-                for i in 0..dd[0] {
-                    let cx = center(0, i);
-                    let (mut sum, mut wsum) = (0.0f64, 0.0f64);
-                    for &(oz, wz) in tz {
-                        let z = clampi(2, cz, oz);
-                        for &(oy, wy) in ty {
-                            let y = clampi(1, cy, oy);
-                            for &(ox, wx) in tx {
-                                let x = clampi(0, cx, ox);
-                                let v = src[x + sd[0] * (y + sd[1] * z)].to_f64();
-                                if v.is_finite() {
-                                    let w = wx * wy * wz;
-                                    sum += w * v;
-                                    wsum += w;
-                                }
-                            }
+    out.par_chunks_mut(dd[0]).enumerate().for_each(|(j, row)| {
+        let cy = center(1, j);
+        for (i, dst) in row.iter_mut().enumerate() {
+            let cx = center(0, i);
+            let (mut sum, mut wsum) = (0.0f64, 0.0f64);
+            for &(oz, wz) in tz {
+                let src = planes[(oz + 1) as usize];
+                for &(oy, wy) in ty {
+                    let y = clampi(1, cy, oy);
+                    for &(ox, wx) in tx {
+                        let x = clampi(0, cx, ox);
+                        let v = src[x + sd[0] * y].to_f64();
+                        if v.is_finite() {
+                            let w = wx * wy * wz;
+                            sum += w * v;
+                            wsum += w;
                         }
                     }
-                    slice[i + dd[0] * j] = if wsum > 0.0 {
-                        T::from_f64(sum / wsum)
-                    } else {
-                        T::from_f64(f64::NAN)
-                    };
                 }
             }
-        });
-    (out, ddims)
+            *dst = if wsum > 0.0 {
+                T::from_f64(sum / wsum)
+            } else {
+                T::from_f64(f64::NAN)
+            };
+        }
+    });
 }
 
 #[cfg(test)]

@@ -26,7 +26,9 @@ pub mod treelet;
 pub use build::{BuildReport, build_treelets};
 pub use layout::{LevelShape, TreeletLayout, TreeletLevel};
 pub use quantize::{CodeQuery, Quantizer};
-pub use scene::{AnyOocVolume, OocOptions, OocScene, OocVolume};
+pub use scene::{
+    AnyOocVolume, LoadProgress, OocOptions, OocScene, OocVolume, physical_memory_bytes,
+};
 pub use treelet::{MemoryStorage, OocMeta, TreeletRecord, TreeletSink, TreeletStorage};
 
 use thiserror::Error;

@@ -77,13 +77,65 @@ pub struct OocOptions {
     pub budget_bytes: u64,
 }
 
+/// The default budget is physical memory divided by this (half of RAM: the rest is left to
+/// the page cache the treelet file is read through, the frame buffers and other programs).
+pub const BUDGET_DIVISOR: u64 = 2;
+/// The budget when physical memory is unknown (no `/proc/meminfo`).
+pub const FALLBACK_BUDGET_BYTES: u64 = 2 << 30;
+
 impl Default for OocOptions {
+    /// Budget: [`physical_memory_bytes`] / [`BUDGET_DIVISOR`], else
+    /// [`FALLBACK_BUDGET_BYTES`].
     fn default() -> Self {
         Self {
-            budget_bytes: 2 << 30,
+            budget_bytes: physical_memory_bytes()
+                .map_or(FALLBACK_BUDGET_BYTES, |m| m / BUDGET_DIVISOR),
         }
     }
 }
+
+/// Physical memory (`MemTotal` of `/proc/meminfo`), where the system has it (Linux).
+pub fn physical_memory_bytes() -> Option<u64> {
+    parse_mem_total(&std::fs::read_to_string("/proc/meminfo").ok()?)
+}
+
+/// `MemTotal:  N kB` of a `/proc/meminfo` text, in bytes.
+pub fn parse_mem_total(meminfo: &str) -> Option<u64> {
+    let rest = meminfo.lines().find_map(|l| l.strip_prefix("MemTotal:"))?;
+    let mut words = rest.split_whitespace();
+    let n: u64 = words.next()?.parse().ok()?;
+    match words.next() {
+        Some("kB") => n.checked_mul(1024),
+        None => Some(n),
+        Some(_) => None,
+    }
+}
+
+/// Loader progress for a GUI: poll [`OocVolume::progress`] (or the lock-free
+/// [`OocVolume::generation`]) each frame, or receive it from [`OocVolume::on_level`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadProgress {
+    /// Increases with every published level and every end of loading: redraw when it
+    /// changes.
+    pub generation: u64,
+    /// Increases with every [`OocVolume::set_isovalues`] that changes the quantized bucket
+    /// (a restart).
+    pub request: u64,
+    /// Levels the next frame renders with (1 = the top treelet only).
+    pub loaded_levels: usize,
+    pub level_count: usize,
+    /// Treelets fetched and needed for the level being loaded now.
+    pub level_fetched: u64,
+    pub level_needed: u64,
+    /// Bytes of the resident treelets the next frame renders with (the working set).
+    pub resident_bytes: u64,
+    /// The loader is idle for the current isovalues.
+    pub finished: bool,
+    /// The memory budget stopped loading before the finest level.
+    pub budget_limited: bool,
+}
+
+type Listener = Arc<dyn Fn(&LoadProgress) + Send + Sync>;
 
 #[derive(Debug)]
 struct State<T: Voxel> {
@@ -106,6 +158,10 @@ struct Shared<T: Voxel> {
     stop: AtomicBool,
     state: Mutex<State<T>>,
     changed: Condvar,
+    generation: AtomicU64,
+    level_fetched: AtomicU64,
+    level_needed: AtomicU64,
+    listener: Mutex<Option<Listener>>,
 }
 
 /// An out-of-core volume: storage, loader thread and published levels.
@@ -192,15 +248,46 @@ impl<T: Voxel> Shared<T> {
         out
     }
 
+    fn progress_of(&self, st: &State<T>) -> LoadProgress {
+        LoadProgress {
+            generation: self.generation.load(Ordering::Acquire),
+            request: self.request.load(Ordering::Acquire),
+            loaded_levels: st.snapshot.levels.len(),
+            level_count: self.meta.layout.level_count(),
+            level_fetched: self.level_fetched.load(Ordering::Acquire),
+            level_needed: self.level_needed.load(Ordering::Acquire),
+            resident_bytes: st.snapshot.resident_bytes,
+            finished: st.finished,
+            budget_limited: st.budget_limited,
+        }
+    }
+
+    /// Calls the listener (outside the state lock) with `progress`.
+    fn notify(&self, progress: Option<LoadProgress>) {
+        if let Some(p) = progress {
+            let listener = self.listener.lock().expect("listener").clone();
+            if let Some(f) = listener {
+                f(&p);
+            }
+        }
+    }
+
+    /// Makes `levels` the snapshot of the next frames (the renderer's "loaded LODs").
     fn publish(&self, request: u64, levels: &[Arc<LevelMap<T>>], bytes: u64) {
-        let mut st = self.state.lock().expect("loader state");
-        if self.request.load(Ordering::Acquire) == request {
+        let progress = {
+            let mut st = self.state.lock().expect("loader state");
+            if self.request.load(Ordering::Acquire) != request {
+                return;
+            }
             st.snapshot = Arc::new(Snapshot {
                 levels: levels.to_vec(),
                 resident_bytes: bytes,
             });
+            self.generation.fetch_add(1, Ordering::AcqRel);
             self.changed.notify_all();
-        }
+            Some(self.progress_of(&st))
+        };
+        self.notify(progress);
     }
 
     /// One sweep for `queries`; `Ok(true)` when the budget stopped it.
@@ -222,6 +309,9 @@ impl<T: Voxel> Shared<T> {
                 self.needed_children(&levels[l - 1], l - 1, queries, all)
             };
             let mut map = LevelMap::with_capacity(needed.len());
+            self.level_fetched.store(0, Ordering::Release);
+            self.level_needed
+                .store(needed.len() as u64, Ordering::Release);
             for idx in needed {
                 if self.request.load(Ordering::Acquire) != request
                     || self.stop.load(Ordering::Acquire)
@@ -237,6 +327,7 @@ impl<T: Voxel> Shared<T> {
                     return Ok(true);
                 }
                 map.insert(idx, t);
+                self.level_fetched.fetch_add(1, Ordering::AcqRel);
             }
             levels.push(Arc::new(map));
             self.publish(request, &levels, bytes);
@@ -263,16 +354,21 @@ impl<T: Voxel> Shared<T> {
             };
             let result = self.sweep(request, &queries, all, &old);
             drop(old);
-            let mut st = self.state.lock().expect("loader state");
-            if self.request.load(Ordering::Acquire) != request {
-                continue;
-            }
-            st.finished = true;
-            match result {
-                Ok(limited) => st.budget_limited = limited,
-                Err(e) => st.error = Some(e),
-            }
-            self.changed.notify_all();
+            let progress = {
+                let mut st = self.state.lock().expect("loader state");
+                if self.request.load(Ordering::Acquire) != request {
+                    continue;
+                }
+                st.finished = true;
+                match result {
+                    Ok(limited) => st.budget_limited = limited,
+                    Err(e) => st.error = Some(e),
+                }
+                self.generation.fetch_add(1, Ordering::AcqRel);
+                self.changed.notify_all();
+                self.progress_of(&st)
+            };
+            self.notify(Some(progress));
         }
     }
 }
@@ -311,6 +407,10 @@ impl<T: Voxel> OocVolume<T> {
                 error: None,
             }),
             changed: Condvar::new(),
+            generation: AtomicU64::new(0),
+            level_fetched: AtomicU64::new(0),
+            level_needed: AtomicU64::new(0),
+            listener: Mutex::new(None),
         };
         let first = Arc::new(shared.load(0, 0)?);
         let bytes = first.bytes();
@@ -349,7 +449,27 @@ impl<T: Voxel> OocVolume<T> {
         st.budget_limited = false;
         st.error = None;
         self.shared.request.fetch_add(1, Ordering::AcqRel);
+        self.shared.generation.fetch_add(1, Ordering::AcqRel);
         self.shared.changed.notify_all();
+    }
+
+    /// Calls `listener` from the loader thread after every published level (the thesis'
+    /// "notify the render threads whenever a new LOD level is loaded", §7.8.2) and when
+    /// loading ends. It must be quick (e.g. send on a channel, request a repaint).
+    pub fn on_level(&self, listener: impl Fn(&LoadProgress) + Send + Sync + 'static) {
+        *self.shared.listener.lock().expect("listener") = Some(Arc::new(listener));
+    }
+
+    /// Loader progress (one short lock).
+    pub fn progress(&self) -> LoadProgress {
+        let st = self.shared.state.lock().expect("loader state");
+        self.shared.progress_of(&st)
+    }
+
+    /// Changes with every published level, end of loading and restart (lock-free; a GUI
+    /// compares it with the value of its last frame).
+    pub fn generation(&self) -> u64 {
+        self.shared.generation.load(Ordering::Acquire)
     }
 
     /// The scene for the next frame (the levels published so far).
@@ -832,6 +952,18 @@ impl AnyOocVolume {
         dispatch_ooc!(self, v => v.wait_until_finished(timeout))
     }
 
+    pub fn on_level(&self, listener: impl Fn(&LoadProgress) + Send + Sync + 'static) {
+        dispatch_ooc!(self, v => v.on_level(listener));
+    }
+
+    pub fn progress(&self) -> LoadProgress {
+        dispatch_ooc!(self, v => v.progress())
+    }
+
+    pub fn generation(&self) -> u64 {
+        dispatch_ooc!(self, v => v.generation())
+    }
+
     /// Hands this frame's typed [`OocScene`] to `visitor` (monomorphized rendering, as
     /// [`crate::grid_scene::AnyGridScene::visit`]).
     pub fn visit_scene<V: crate::grid_scene::SceneVisitor>(
@@ -1017,5 +1149,77 @@ mod tests {
         let mut store = MemoryStorage::new();
         build_treelets(&grid, &voxels, layout, &mut store, &mut |_, _| {}).unwrap();
         assert!(OocVolume::<u8>::open(Arc::new(store), OocOptions::default()).is_err());
+    }
+
+    #[test]
+    fn levels_are_notified_in_order_and_a_new_bucket_restarts_loading() {
+        let dims = [31, 23, 17];
+        let (_, _, vol) = setup(dims, 4, u64::MAX);
+        let n = vol.level_count();
+        assert!(n >= 3);
+        let (tx, rx) = std::sync::mpsc::channel::<LoadProgress>();
+        let tx = Mutex::new(tx);
+        vol.on_level(move |p| {
+            let _ = tx.lock().unwrap().send(*p);
+        });
+        let g0 = vol.generation();
+        // The listener runs on the loader thread: collect up to the end-of-loading event.
+        let until_finished = || {
+            let mut events = Vec::new();
+            while let Ok(e) = rx.recv_timeout(Duration::from_secs(30)) {
+                events.push(e);
+                if e.finished {
+                    break;
+                }
+            }
+            events
+        };
+        vol.set_isovalues(&[5.0]);
+        let events = until_finished();
+        // One event per published level 1..=n, then the end of loading.
+        let levels: Vec<usize> = events.iter().map(|e| e.loaded_levels).collect();
+        assert_eq!(levels, (1..=n).chain([n]).collect::<Vec<_>>(), "{events:?}");
+        assert!(events.windows(2).all(|w| w[0].generation < w[1].generation));
+        assert!(events[0].generation > g0);
+        let last = *events.last().unwrap();
+        assert!(last.finished && !last.budget_limited);
+        assert_eq!(last.level_count, n);
+        assert_eq!(last.level_fetched, last.level_needed);
+        assert_eq!(last.resident_bytes, vol.resident_bytes());
+        assert_eq!(vol.progress(), last);
+        // Same quantized bucket: nothing reloads, nobody is notified.
+        let q = vol.meta().quantizer;
+        let b5 = q.query(5.0).unwrap();
+        let same = (1..100_000u32)
+            .flat_map(|i| [5.0f32.to_bits() + i, 5.0f32.to_bits() - i])
+            .map(f32::from_bits)
+            .find(|&c| q.query(c) == Some(b5))
+            .expect("a neighbour in the bucket");
+        let g1 = vol.generation();
+        vol.set_isovalues(&[same]);
+        assert!(vol.is_finished());
+        assert_eq!(vol.generation(), g1);
+        assert_eq!(rx.try_iter().count(), 0);
+        // Outside the bucket: loading restarts at the top level and refines again.
+        let other = 14.0f32;
+        assert_ne!(q.query(other), Some(b5));
+        vol.set_isovalues(&[other]);
+        let events = until_finished();
+        assert_eq!(events[0].loaded_levels, 1, "{events:?}");
+        assert!(events[0].request > last.request);
+        assert_eq!(events.last().unwrap().loaded_levels, n);
+    }
+
+    #[test]
+    fn default_budget_is_half_of_physical_memory() {
+        let text = "MemTotal:       24593312 kB\nMemFree:        1 kB\n";
+        assert_eq!(parse_mem_total(text), Some(24_593_312 * 1024));
+        assert_eq!(parse_mem_total("MemFree: 1 kB\n"), None);
+        assert_eq!(parse_mem_total("MemTotal: x kB\n"), None);
+        let want = physical_memory_bytes().map_or(FALLBACK_BUDGET_BYTES, |m| m / BUDGET_DIVISOR);
+        assert_eq!(OocOptions::default().budget_bytes, want);
+        if cfg!(target_os = "linux") {
+            assert!(physical_memory_bytes().is_some_and(|m| m > 1 << 20));
+        }
     }
 }
