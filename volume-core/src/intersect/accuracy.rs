@@ -11,7 +11,15 @@
 //! along cell faces and edges, tangent (double-root) and triple-root cells, integer data at
 //! integer isovalues, constant cells, NaN and ±inf voxels, values near the `f32` limits and
 //! denormals, a volume far from the origin, one-cell-thin volumes and a camera inside the
-//! volume. Every case is deterministic (seeded).
+//! volume. Every case is deterministic (seeded). Later cases add the variants the first
+//! ones leave open: `f32` tangent cells and near-tangent rays (two roots 1e-2…1e-4 cell
+//! apart), `i16` data with rays running along iso-valued grid lines, origins on sample
+//! positions and inside iso-valued constant cells, rays in the volume's outer faces, values
+//! around 1e30, and thin volumes along every axis.
+//!
+//! [`trace_rays`] and [`score`] are the two halves of [`compare`] for callers that trace the
+//! reference once and score several intersectors against it per ray (the difference images
+//! of `isoscope accuracy`).
 
 use std::time::Instant;
 
@@ -77,13 +85,144 @@ pub fn compare(
     isovalues: &[f32],
     intersector: Intersector,
 ) -> AccuracyReport {
-    crate::dispatch_grid_scene!(scene, s => compare_typed(s, rays, isovalues, intersector))
+    let got = trace_rays(scene, rays, isovalues, intersector);
+    let truth = trace_rays(scene, rays, isovalues, Intersector::Reference);
+    score(&got, &truth).0
 }
 
 /// Builds the scene for a [`Case`] and scores `intersector` on it.
 pub fn compare_case(case: &Case, intersector: Intersector) -> AccuracyReport {
     let scene = AnyGridScene::new(&case.volume, intersector);
     compare(&scene, &case.rays, &case.isovalues, intersector)
+}
+
+/// The first hit of one ray: `t` in cell units (traversal units times the ray's speed
+/// there, so `|Δt|` of two hits is in cells) and the surface index.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RayHit {
+    pub t_cells: f64,
+    pub surface: u32,
+}
+
+/// First hits of a set of rays with one intersector, and the time the tracing took.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Traced {
+    pub intersector: Intersector,
+    /// One entry per ray, `None` where the ray hits nothing.
+    pub hits: Vec<Option<RayHit>>,
+    /// Single-threaded wall time of the traversal (kd-tree, one ray at a time).
+    pub seconds: f64,
+}
+
+/// How one ray compares with the reference.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum RayOutcome {
+    /// Neither hits.
+    NoHit,
+    /// Both hit; `|Δt|` in cell units and whether the surfaces agree.
+    Both {
+        abs_dt_cells: f64,
+        same_surface: bool,
+    },
+    /// The reference hits, the method does not.
+    Missed,
+    /// The method hits, the reference does not.
+    False,
+}
+
+/// Traces `rays` through the kd-tree of `scene` with `intersector` (one ray at a time, on
+/// the calling thread, whatever intersector the scene was built with).
+pub fn trace_rays(
+    scene: &AnyGridScene,
+    rays: &[Ray],
+    isovalues: &[f32],
+    intersector: Intersector,
+) -> Traced {
+    crate::dispatch_grid_scene!(scene, s => trace_typed(s, rays, isovalues, intersector))
+}
+
+fn trace_typed<T: Voxel>(
+    scene: &GridScene<T>,
+    rays: &[Ray],
+    isovalues: &[f32],
+    intersector: Intersector,
+) -> Traced {
+    let isos = IsoSet::<T>::new(isovalues);
+    let start = Instant::now();
+    let hits = trace(scene, rays, &isos, intersector);
+    let seconds = start.elapsed().as_secs_f64();
+    let hits = hits
+        .into_iter()
+        .map(|h| {
+            h.map(|(h, speed)| RayHit {
+                t_cells: f64::from(h.t) * f64::from(speed),
+                surface: h.surface,
+            })
+        })
+        .collect();
+    Traced {
+        intersector,
+        hits,
+        seconds,
+    }
+}
+
+/// Scores `got` against `truth` (the same rays traced with the reference): the report and
+/// the outcome of every ray.
+///
+/// # Panics
+/// If the two traces have different ray counts.
+pub fn score(got: &Traced, truth: &Traced) -> (AccuracyReport, Vec<RayOutcome>) {
+    assert_eq!(got.hits.len(), truth.hits.len(), "traces of different rays");
+    let mut r = AccuracyReport {
+        intersector: got.intersector,
+        rays: got.hits.len() as u64,
+        reference_hits: 0,
+        missed: 0,
+        false_hits: 0,
+        mean_abs_dt_cells: 0.0,
+        max_abs_dt_cells: 0.0,
+        wrong_surface: 0,
+        seconds: got.seconds,
+    };
+    let mut both = 0u64;
+    let mut sum = 0.0f64;
+    let outcomes = got
+        .hits
+        .iter()
+        .zip(&truth.hits)
+        .map(|(g, t)| match (g, t) {
+            (Some(g), Some(t)) => {
+                r.reference_hits += 1;
+                both += 1;
+                let dt = (g.t_cells - t.t_cells).abs();
+                sum += dt;
+                r.max_abs_dt_cells = r.max_abs_dt_cells.max(dt);
+                let same_surface = g.surface == t.surface;
+                if !same_surface {
+                    r.wrong_surface += 1;
+                }
+                RayOutcome::Both {
+                    abs_dt_cells: dt,
+                    same_surface,
+                }
+            }
+            (None, Some(_)) => {
+                r.reference_hits += 1;
+                r.missed += 1;
+                RayOutcome::Missed
+            }
+            (Some(_), None) => {
+                r.false_hits += 1;
+                RayOutcome::False
+            }
+            (None, None) => RayOutcome::NoHit,
+        })
+        .collect();
+    if both > 0 {
+        r.mean_abs_dt_cells = sum / both as f64;
+    }
+    (r, outcomes)
 }
 
 fn trace<T: Voxel>(
@@ -101,56 +240,6 @@ fn trace<T: Voxel>(
                 .map(|h| (h, local.dir.length()))
         })
         .collect())
-}
-
-fn compare_typed<T: Voxel>(
-    scene: &GridScene<T>,
-    rays: &[Ray],
-    isovalues: &[f32],
-    intersector: Intersector,
-) -> AccuracyReport {
-    let isos = IsoSet::<T>::new(isovalues);
-    let start = Instant::now();
-    let got = trace(scene, rays, &isos, intersector);
-    let seconds = start.elapsed().as_secs_f64();
-    let truth = trace(scene, rays, &isos, Intersector::Reference);
-    let mut r = AccuracyReport {
-        intersector,
-        rays: rays.len() as u64,
-        reference_hits: 0,
-        missed: 0,
-        false_hits: 0,
-        mean_abs_dt_cells: 0.0,
-        max_abs_dt_cells: 0.0,
-        wrong_surface: 0,
-        seconds,
-    };
-    let mut both = 0u64;
-    let mut sum = 0.0f64;
-    for (g, t) in got.iter().zip(&truth) {
-        match (g, t) {
-            (Some((g, speed)), Some((t, _))) => {
-                r.reference_hits += 1;
-                both += 1;
-                let dt = f64::from((g.t - t.t).abs()) * f64::from(*speed);
-                sum += dt;
-                r.max_abs_dt_cells = r.max_abs_dt_cells.max(dt);
-                if g.surface != t.surface {
-                    r.wrong_surface += 1;
-                }
-            }
-            (None, Some(_)) => {
-                r.reference_hits += 1;
-                r.missed += 1;
-            }
-            (Some(_), None) => r.false_hits += 1,
-            (None, None) => {}
-        }
-    }
-    if both > 0 {
-        r.mean_abs_dt_cells = sum / both as f64;
-    }
-    r
 }
 
 /// Deterministic generator for the suite.
@@ -457,7 +546,190 @@ pub fn extreme_suite() -> Vec<Case> {
             rays,
         });
     }
+    more_cases(&mut cases);
     cases
+}
+
+/// Variants the cases above leave open (each with its own seed, so the cases above keep
+/// their rays).
+fn more_cases(cases: &mut Vec<Case>) {
+    let smooth_vol = volume([16, 14, 12], [0.0; 3], [1.0; 3], smooth);
+    let (lo, hi) = bounds(&smooth_vol);
+
+    // f32 tangent cells: v = (−1)^(i+j), iso 0. Rays x = y + m + δ touch the saddles
+    // (δ = 0: double root) or cross the surface twice δ apart (two roots δ cells apart).
+    {
+        let mut rng = Lcg(0x7a_9e47);
+        let vol = volume([9, 9, 4], [0.0; 3], [1.0; 3], |i, j, _| {
+            if (i + j) % 2 == 0 { 1.0f32 } else { -1.0 }
+        });
+        let deltas = [0.0f32, 1e-2, -1e-2, 1e-3, -1e-3];
+        let rays = (0..250)
+            .map(|n| {
+                let m = rng.index(7) as f32 - 3.0 + deltas[n % deltas.len()];
+                let z = rng.range(0.0, 3.0);
+                let d = Vec3::new(1.0, 1.0, 0.0).normalize();
+                let o = Vec3::new(m - 2.0, -2.0, z);
+                if rng.unit() < 0.5 {
+                    Ray::new(o, d)
+                } else {
+                    Ray::new(o + d * 30.0, -d)
+                }
+            })
+            .collect();
+        cases.push(Case {
+            name: "f32 tangent cells, near-tangent rays (roots 1e-2, 1e-3 apart)".into(),
+            volume: vol,
+            isovalues: vec![0.0],
+            rays,
+        });
+    }
+
+    // i16 data at integer isovalues: a plane and a block equal to the isovalue; rays along
+    // grid lines (which then run inside the surface) and rays aimed at sample positions.
+    {
+        let mut rng = Lcg(0x116_1e55);
+        let dims = [13usize, 11, 9];
+        let vol = volume(dims, [0.0; 3], [1.0; 3], |i, j, k| {
+            if k == 4 || (i >= 8 && j >= 6) {
+                -2i16
+            } else {
+                ((i * 5 + j * 3 + k * 7) % 11) as i16 - 5
+            }
+        });
+        let (lo, hi) = bounds(&vol);
+        let rays = (0..400)
+            .map(|n| {
+                let a = n % 3;
+                let grid_point = Vec3::new(
+                    rng.index(dims[0]) as f32,
+                    rng.index(dims[1]) as f32,
+                    rng.index(dims[2]) as f32,
+                );
+                if n % 2 == 0 {
+                    // Along a grid line parallel to axis a.
+                    let sign = if rng.unit() < 0.5 { 1.0 } else { -1.0 };
+                    let mut o = grid_point;
+                    o[a] = if sign > 0.0 { lo[a] - 2.0 } else { hi[a] + 2.0 };
+                    let mut d = Vec3::ZERO;
+                    d[a] = sign;
+                    Ray::new(o, d)
+                } else {
+                    // Through a sample position, exactly: small integer directions (not
+                    // normalized) keep every coordinate and slab distance exact in f32.
+                    // (Random unit directions pass the sample ~1e-7 cell away, where a touch
+                    // of an iso-valued sample is decided by rounding, not by the method.)
+                    let mut d = Vec3::ZERO;
+                    while d.abs().cmpgt(Vec3::ZERO).bitmask().count_ones() < 2 {
+                        d = Vec3::new(
+                            rng.index(5) as f32 - 2.0,
+                            rng.index(5) as f32 - 2.0,
+                            rng.index(5) as f32 - 2.0,
+                        );
+                    }
+                    Ray::new(grid_point - d * 16.0, d)
+                }
+            })
+            .collect();
+        cases.push(Case {
+            name: "i16 integer isovalues, rays along grid lines and through samples".into(),
+            volume: vol,
+            isovalues: vec![-2.0, 3.0],
+            rays,
+        });
+    }
+
+    // Camera on sample positions, some inside a constant block equal to the isovalue.
+    {
+        let mut rng = Lcg(0xca_3e7a);
+        let dims = [14usize, 12, 10];
+        let vol = volume(dims, [0.0; 3], [1.0; 3], |i, j, k| {
+            if i < 5 && j < 5 {
+                4u8
+            } else {
+                ((i * 7 + j * 3 + k * 5) % 9) as u8
+            }
+        });
+        let rays = (0..400)
+            .map(|n| {
+                let o = Vec3::new(
+                    rng.index(dims[0]) as f32,
+                    rng.index(dims[1]) as f32,
+                    rng.index(dims[2]) as f32,
+                );
+                let d = if n % 4 == 0 {
+                    let mut d = Vec3::ZERO;
+                    d[n / 4 % 3] = if n % 8 == 0 { 1.0 } else { -1.0 };
+                    d
+                } else {
+                    rng.vec(-1.0, 1.0).normalize_or(Vec3::Y)
+                };
+                Ray::new(o, d)
+            })
+            .collect();
+        cases.push(Case {
+            name: "camera on sample positions and inside iso-valued cells".into(),
+            volume: vol,
+            isovalues: vec![4.0, 6.5],
+            rays,
+        });
+    }
+
+    // Rays in the volume's outer faces and along its outer edges.
+    {
+        let mut rng = Lcg(0xb0_0a7d);
+        let rays = (0..300)
+            .map(|n| {
+                let a = n % 3;
+                let mut o = lo + rng.vec(0.0, 1.0) * (hi - lo);
+                let mut d = rng.vec(-1.0, 1.0);
+                o[a] = if rng.unit() < 0.5 { lo[a] } else { hi[a] };
+                d[a] = 0.0;
+                if n % 2 == 0 {
+                    let b = (a + 1) % 3;
+                    o[b] = if rng.unit() < 0.5 { lo[b] } else { hi[b] };
+                    d[b] = 0.0;
+                }
+                let d = d.normalize_or(Vec3::X);
+                Ray::new(o - d * (hi - lo).length(), d)
+            })
+            .collect();
+        cases.push(Case {
+            name: "rays in the volume's outer faces and edges".into(),
+            volume: smooth_vol.clone(),
+            isovalues: vec![0.1, -0.4],
+            rays,
+        });
+    }
+
+    // Values around 1e30 (1e30 ± 1.5e28): differences far below the values themselves.
+    {
+        let mut rng = Lcg(0x1e30);
+        let vol = volume([16, 14, 12], [0.0; 3], [1.0; 3], |i, j, k| {
+            1e30f32 + smooth(i, j, k) * 1e28
+        });
+        let rays = rays_from_outside(&mut rng, lo, hi, 300);
+        cases.push(Case {
+            name: "values around 1e30 (1e30 ± 1.5e28)".into(),
+            volume: vol,
+            isovalues: vec![1.001e30],
+            rays,
+        });
+    }
+
+    // Thin volumes along the other axes; 1×1×N has no cells at all.
+    let mut rng = Lcg(0x7e1_a0e5);
+    for dims in [[12, 1, 12], [12, 12, 1], [15, 13, 2], [1, 1, 9]] {
+        let vol = volume(dims, [0.0; 3], [1.0; 3], smooth);
+        let (lo, hi) = bounds(&vol);
+        let rays = rays_from_outside(&mut rng, lo, hi, 300);
+        cases.push(Case {
+            name: format!("{}×{}×{} volume", dims[0], dims[1], dims[2]),
+            volume: vol,
+            isovalues: vec![0.1],
+            rays,
+        });
+    }
 }
 
 /// Scores every intersector on every case of the extreme suite.
