@@ -145,6 +145,7 @@ impl Default for SceneOptions {
 
 /// A loaded scene of any kind (module docs).
 #[derive(Debug)]
+#[allow(clippy::large_enum_variant)] // one per open file; boxing would only add a pointer hop
 pub enum AnyScene {
     Grid(GridData),
     Tet(TetData),
@@ -570,27 +571,25 @@ impl TetData {
         };
         check_step(options.step, count, path)?;
         let mesh = &loaded.mesh;
-        let field = match &options.field {
-            Some(f) => f.clone(),
-            None => match mesh.fields.first() {
-                Some(f) => f.name.clone(),
-                None => {
-                    let skipped: Vec<String> = loaded
-                        .skipped_arrays
-                        .iter()
-                        .map(|(n, why)| format!("{n} ({why})"))
-                        .collect();
-                    bail!(
-                        "{}: the mesh has no scalar point array to draw an isosurface of{}",
-                        path.display(),
-                        if skipped.is_empty() {
-                            String::new()
-                        } else {
-                            format!("; skipped arrays: {}", skipped.join(", "))
-                        }
-                    );
+        let field = if let Some(f) = &options.field {
+            f.clone()
+        } else if let Some(f) = mesh.fields.first() {
+            f.name.clone()
+        } else {
+            let skipped: Vec<String> = loaded
+                .skipped_arrays
+                .iter()
+                .map(|(n, why)| format!("{n} ({why})"))
+                .collect();
+            bail!(
+                "{}: the mesh has no scalar point array to draw an isosurface of{}",
+                path.display(),
+                if skipped.is_empty() {
+                    String::new()
+                } else {
+                    format!("; skipped arrays: {}", skipped.join(", "))
                 }
-            },
+            );
         };
         mesh.require_field(&field)
             .with_context(|| format!("{}: --field", path.display()))?;
@@ -668,7 +667,7 @@ impl TetData {
     pub fn set_field(&mut self, name: &str) -> anyhow::Result<()> {
         let values = step_field(&self.step_fields, name, self.step, &self.path)?;
         self.scene.refit_scalars(values)?;
-        self.field = name.to_owned();
+        name.clone_into(&mut self.field);
         Ok(())
     }
 
@@ -728,17 +727,15 @@ fn step_field<'a>(
     step: usize,
     path: &Path,
 ) -> anyhow::Result<&'a [f32]> {
-    match fields.iter().find(|f| f.name == name) {
-        Some(f) => Ok(&f.values),
-        None => {
-            let names: Vec<&str> = fields.iter().map(|f| f.name.as_str()).collect();
-            bail!(
-                "{}: time step {step} has no point array \"{name}\" (available: {})",
-                path.display(),
-                names.join(", ")
-            )
-        }
+    if let Some(f) = fields.iter().find(|f| f.name == name) {
+        return Ok(&f.values);
     }
+    let names: Vec<&str> = fields.iter().map(|f| f.name.as_str()).collect();
+    bail!(
+        "{}: time step {step} has no point array \"{name}\" (available: {})",
+        path.display(),
+        names.join(", ")
+    )
 }
 
 // ---------------------------------------------------------------------------------------

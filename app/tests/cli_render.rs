@@ -222,3 +222,41 @@ fn bench_json_has_the_documented_fields() {
     assert_eq!(exact["missed_percent"], 0.0);
     assert_eq!(exact["false_hits_percent"], 0.0);
 }
+
+#[test]
+fn bench_iso_sweep_changes_the_isovalue_every_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let json = ok(&[
+        "bench",
+        s(&vol),
+        "--size",
+        "32x32",
+        "--frames",
+        "3",
+        "--skip-dda",
+        "--iso-sweep",
+        "4",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    assert_eq!(v["kind"], "grid");
+    let w = &v["iso_sweep"];
+    let isos: Vec<f64> = w["isovalues"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(isos.len(), 4);
+    assert!(isos.windows(2).all(|p| p[1] > p[0]), "{isos:?}");
+    // Over the middle half of the value range of the file.
+    let info: serde_json::Value = serde_json::from_str(&ok(&["info", s(&vol), "--json"])).unwrap();
+    let [lo, hi] = [0, 1].map(|i| info["value_range"][i].as_f64().unwrap());
+    assert!((isos[0] - (lo + 0.25 * (hi - lo))).abs() < 1e-5, "{isos:?}");
+    assert!((isos[3] - (lo + 0.75 * (hi - lo))).abs() < 1e-5, "{isos:?}");
+    assert_eq!(w["frame_ms"].as_array().unwrap().len(), 4);
+    assert_eq!(w["steady_median_ms"], v["configs"][0]["median_ms"]);
+    assert!(w["max_ratio"].as_f64().unwrap() >= w["median_ratio"].as_f64().unwrap());
+    assert!(w["build_ms"].as_f64().unwrap() > 0.0);
+}

@@ -1,44 +1,61 @@
 //! `isoscope bench FILE [--iso V]... [--camera cam.json | --orbit AZ,EL] [--size WxH]
 //! [--frames N] [--threads T] [--intersector NAME] [--intersectors all|LIST] [--skip-dda]
-//! [--json]`
+//! [--iso-sweep N] [--json]`, plus the mesh flags (`--field`, `--bvh`, `--leaf-size`,
+//! `--packet`, `--normals`, `--compare-bvh`) and the `.isot` flags (`--level-timeout`,
+//! `--budget-mb`).
 //!
-//! Measures, in one run on the same volume, camera and isovalues:
-//! - the kd-tree build time and its memory overhead (tree bytes / voxel bytes);
-//! - median ms/frame and primary rays/s of three configurations — kd-tree with packets (the
+//! Measures, in one run on the same data, camera and isovalues:
+//! - volumes: the kd-tree build time and its memory overhead (tree bytes / voxel bytes);
+//!   median ms/frame and primary rays/s of three configurations — kd-tree with packets (the
 //!   default, what `render` and the viewer use), kd-tree one ray at a time, and the
 //!   brute-force 3D-DDA twin (the baseline) — plus nodes, leaves and intersections per ray
-//!   from one extra frame with statistics on (statistics are off while timing);
-//! - with `--intersectors`, a speed/accuracy table per intersector: Mrays/s of full frames,
-//!   and mean/max |Δt| against the f64 reference in cell units, % missed and % false hits on
-//!   the camera's primary rays (`volume_core::intersect::accuracy::compare`).
+//!   from one extra frame with statistics on (statistics are off while timing); with
+//!   `--intersectors`, a speed/accuracy table per intersector: Mrays/s of full frames, and
+//!   mean/max |Δt| against the f64 reference in cell units, % missed and % false hits on the
+//!   camera's primary rays (`volume_core::intersect::accuracy::compare`);
+//! - tetrahedral meshes: BVH build time and bytes; ms/frame, frames/s and rays/s with 16×16
+//!   packets (or `--packet`; the default configuration), 2×2 packets and single rays, and per
+//!   frame the ray–box tests, isopolygon tests and extractions (thesis Table 8.4), with the
+//!   2×2 / 16×16 ratio of ray–box tests; `--compare-bvh` also builds and times the other
+//!   builder (BIH vs SAH, Table 8.1);
+//! - `.isot` files: open time, time to first image (open + one frame from what is loaded),
+//!   time to the finest level the isovalues need, resident memory, and ms/frame at each level
+//!   (each coarser level is reached again by reopening with the memory budget that stops
+//!   there);
+//! - `--iso-sweep N` (volumes and meshes): N frames that each change the isovalue, against the
+//!   steady frames of the same run: a new isovalue costs one frame, not a rebuild.
 //!
 //! A frame includes shading (headlight Blinn–Phong) and the image assembly, so rays/s is the
 //! throughput a user sees. `--json` prints one [`BenchReport`] (a stable interface, see
 //! docs/cli.md); its `rays_per_second` is the median primary-ray throughput of the default
-//! configuration.
+//! configuration for every kind (kd-tree packets; BVH packets of `--packet`; `.isot` at the
+//! finest level loaded).
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use serde::Serialize;
 use volume_core::grid_scene::AnyGridScene;
 use volume_core::intersect::{Intersector, accuracy};
 use volume_core::math::Ray;
-use volume_core::render::{Camera, IsoScene, RayGen, RenderSettings, Surface};
+use volume_core::ooc::OocOptions;
+use volume_core::render::{Camera, Frame, RayGen, RenderSettings, Surface};
+use volume_core::tet::{BvhBuilder, BvhOptions};
 
-use super::open_args::OpenArgs;
+use super::open_args::{MeshArgs, OocArgs, OpenArgs};
 use super::render::{
-    IsoSpec, ViewArgs, load_volume, parse_intersector, parse_iso, parse_size, render_grid,
-    surfaces_from,
+    IsoSpec, ViewArgs, open_with_flags, packet_side, parse_intersector, parse_iso, parse_size,
+    render_grid, surfaces_for,
 };
 use crate::progress::Progress;
+use crate::scene::{AnyScene, OocData, SceneKind, SceneOptions, open_scene};
 
 /// Arguments of `isoscope bench`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file (as for `isoscope render`).
+    /// Volume, tetrahedral mesh or .isot file (as for `isoscope render`).
     pub file: PathBuf,
     /// Isovalue(s), as for `render` (colour and opacity accepted). Default: the middle of the
     /// value range.
@@ -55,20 +72,28 @@ pub struct Args {
     /// Worker threads (a local rayon pool). Default: all cores.
     #[arg(long, value_name = "T")]
     pub threads: Option<usize>,
-    /// Intersector of the kd-tree and DDA configurations.
+    /// Intersector of the kd-tree and DDA configurations (volumes and .isot files).
     #[arg(long, value_name = "NAME", default_value = "exact", value_parser = parse_intersector)]
     pub intersector: Intersector,
     /// Also print the speed/accuracy table for these intersectors: `all` or a comma list
-    /// (linear,neubauer,exact,schwarze,reference).
+    /// (linear,neubauer,exact,schwarze,reference). Volumes only.
     #[arg(long, value_name = "all|LIST", value_parser = parse_intersector_list)]
     pub intersectors: Option<IntersectorList>,
     /// Most primary rays scored per intersector in the accuracy table (a regular subset of
     /// the pixels when the image has more).
     #[arg(long, value_name = "N", default_value_t = 262_144)]
     pub accuracy_rays: usize,
-    /// Skip the (slow) DDA baseline.
+    /// Skip the (slow) DDA baseline (volumes).
     #[arg(long)]
     pub skip_dda: bool,
+    /// Also render N frames that each change the isovalue (over the middle half of the value
+    /// range) and compare them with the steady frames (volumes and meshes).
+    #[arg(long, value_name = "N")]
+    pub iso_sweep: Option<usize>,
+    /// Meshes: also build the other BVH builder (BIH vs SAH) and time its default
+    /// configuration.
+    #[arg(long)]
+    pub compare_bvh: bool,
     /// Time step of a series (default 0).
     #[arg(long, value_name = "N")]
     pub step: Option<usize>,
@@ -77,22 +102,38 @@ pub struct Args {
     pub json: bool,
     #[command(flatten)]
     pub open: OpenArgs,
+    #[command(flatten)]
+    pub mesh: MeshArgs,
+    #[command(flatten)]
+    pub ooc: OocArgs,
 }
 
 /// Timings of one configuration.
 #[derive(Debug, Clone, Serialize)]
 pub struct ConfigReport {
-    /// `kdtree-packet`, `kdtree-single` or `dda`.
+    /// Volumes: `kdtree-packet`, `kdtree-single`, `dda`. Meshes: `bvh-packet-16x16` (or the
+    /// `--packet` side), `bvh-packet-2x2`, `bvh-single`. `.isot`: `isot-level-L`.
     pub name: String,
     pub median_ms: f64,
     /// Every timed frame, ms.
     pub frame_ms: Vec<f64>,
+    /// `1000 / median_ms`.
+    pub frames_per_second: f64,
     /// Primary rays (pixels) per second at the median frame time.
     pub rays_per_second: f64,
     /// Per traced ray (including transparency segments), from one frame with statistics on.
     pub nodes_per_ray: f64,
     pub leaves_per_ray: f64,
     pub intersections_per_ray: f64,
+    /// Meshes: ray–box tests in the statistics frame (a packet test counts its active rays).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub box_tests_per_frame: Option<u64>,
+    /// Meshes: ray–isopolygon tests in the statistics frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub isopolygon_tests_per_frame: Option<u64>,
+    /// Meshes: isopolygon extractions (marching tetrahedra) in the statistics frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub extractions_per_frame: Option<u64>,
     /// DDA median time / this median time (`null` without the DDA run).
     pub speedup_vs_dda: Option<f64>,
 }
@@ -119,30 +160,128 @@ pub struct IntersectorReport {
     pub wrong_surface: u64,
 }
 
+/// Mesh-only results (`kind == "tet"`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshReport {
+    /// Tetrahedra after splitting other cells, and points.
+    pub tets: usize,
+    pub points: usize,
+    /// The drawn point array.
+    pub field: String,
+    /// `bih` or `sah`.
+    pub builder: String,
+    pub leaf_size: usize,
+    pub bvh_nodes: usize,
+    pub bvh_leaves: usize,
+    pub bvh_max_depth: usize,
+    pub mean_leaf_tets: f64,
+    /// Rays per packet side of the default configuration (16 = 16×16).
+    pub packet_side: usize,
+    /// Ray–box tests per frame with 2×2 packets / with the default packets.
+    pub box_test_ratio_2x2: Option<f64>,
+    /// With `--compare-bvh`: the other builder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub other_builder: Option<BuilderReport>,
+}
+
+/// The other BVH builder of `--compare-bvh`.
+#[derive(Debug, Clone, Serialize)]
+pub struct BuilderReport {
+    pub builder: String,
+    pub build_seconds: f64,
+    pub bvh_nodes: usize,
+    pub bvh_bytes: usize,
+    /// Its default configuration (same packets).
+    pub config: ConfigReport,
+}
+
+/// `.isot` results (`kind == "isot"`).
+#[derive(Debug, Clone, Serialize)]
+pub struct OocReport {
+    pub level_count: usize,
+    /// Bytes of the `.isot` file.
+    pub file_bytes: u64,
+    /// Opening the file and loading the top treelet.
+    pub open_seconds: f64,
+    /// Open + the first frame (drawn from whatever is loaded then).
+    pub first_image_seconds: f64,
+    pub first_image_level: usize,
+    /// From the first frame's isovalue request until the loader finished (`null` if
+    /// `--level-timeout` passed first). Includes the first frame's rendering.
+    pub finest_level_seconds: Option<f64>,
+    /// Levels loaded when timing (== `level_count` unless a budget or timeout stopped it).
+    pub loaded_levels: usize,
+    pub budget_limited: bool,
+    /// Resident treelet bytes at the finest level loaded.
+    pub resident_bytes: u64,
+    /// Frames at each level, coarsest first.
+    pub levels: Vec<LevelReport>,
+}
+
+/// Frames rendered at one LOD level of an `.isot` file.
+#[derive(Debug, Clone, Serialize)]
+pub struct LevelReport {
+    pub level: usize,
+    pub resident_bytes: u64,
+    pub median_ms: f64,
+    pub frames_per_second: f64,
+    pub rays_per_second: f64,
+}
+
+/// `--iso-sweep` results.
+#[derive(Debug, Clone, Serialize)]
+pub struct IsoSweepReport {
+    /// The isovalue of each sweep frame.
+    pub isovalues: Vec<f32>,
+    /// Time of each sweep frame, ms.
+    pub frame_ms: Vec<f64>,
+    /// Median of the steady frames (fixed isovalue) of the default configuration, same run.
+    pub steady_median_ms: f64,
+    /// Median and largest sweep frame / steady median.
+    pub median_ratio: f64,
+    pub max_ratio: f64,
+    /// The acceleration structure's build time, ms (what a rebuild per isovalue would add).
+    pub build_ms: f64,
+}
+
 /// The `--json` output.
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchReport {
     pub file: String,
-    pub dims: [usize; 3],
-    pub voxel_type: String,
+    /// `grid`, `tet` or `isot`.
+    pub kind: String,
+    /// Volumes and `.isot`: samples per axis.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dims: Option<[usize; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub voxel_type: Option<String>,
     pub isovalues: Vec<f32>,
     pub width: u32,
     pub height: u32,
     pub frames: usize,
     pub threads: usize,
+    /// Cell intersector (volumes, `.isot`); `isopolygon` for meshes.
     pub intersector: String,
-    /// kd-tree build time (s).
+    /// Build time of the acceleration structure, s (kd-tree, BVH; `.isot`: open time).
     pub build_seconds: f64,
+    /// Acceleration structure bytes (kd-tree, BVH nodes; `.isot`: resident treelets).
     pub tree_bytes: u64,
+    /// Data bytes (voxels; mesh points, values and tets).
     pub data_bytes: u64,
     /// `tree_bytes / data_bytes`.
     pub memory_overhead: f64,
-    /// Median primary rays/s of the default configuration (kd-tree, packets).
+    /// Median primary rays/s of the default configuration (`configs[0]`).
     pub rays_per_second: f64,
     pub configs: Vec<ConfigReport>,
     /// Present with `--intersectors`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub intersectors: Option<Vec<IntersectorReport>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ooc: Option<OocReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iso_sweep: Option<IsoSweepReport>,
 }
 
 /// The intersectors of `--intersectors` (a newtype so that clap takes it as one value).
@@ -173,23 +312,19 @@ fn median(v: &[f64]) -> f64 {
     }
 }
 
-/// Times `frames` frames (after a warm-up) and one statistics frame of one configuration
-/// (also used by `isoscope accuracy`).
-pub fn time_config(
+/// Times `frames` frames of `draw` (after a warm-up) and one statistics frame.
+fn time_frames(
     name: &str,
-    scene: &AnyGridScene,
-    dda: bool,
-    camera: &Camera,
     settings: &RenderSettings,
     frames: usize,
+    draw: &dyn Fn(&RenderSettings) -> Option<Frame>,
 ) -> anyhow::Result<ConfigReport> {
-    let go = AtomicBool::new(false);
     let progress = Progress::bar(frames as u64 + 2, format!("bench {name}"));
-    let warm = render_grid(scene, dda, camera, settings, &go).context("cancelled")?;
+    let warm = draw(settings).context("cancelled")?;
     progress.inc(1);
     let mut frame_ms = Vec::with_capacity(frames);
     for _ in 0..frames {
-        let f = render_grid(scene, dda, camera, settings, &go).context("cancelled")?;
+        let f = draw(settings).context("cancelled")?;
         frame_ms.push(f.elapsed.as_secs_f64() * 1e3);
         progress.inc(1);
     }
@@ -197,7 +332,7 @@ pub fn time_config(
         collect_stats: true,
         ..settings.clone()
     };
-    let s = render_grid(scene, dda, camera, &stats_settings, &go).context("cancelled")?;
+    let s = draw(&stats_settings).context("cancelled")?;
     progress.inc(1);
     let c = s.counts;
     let rays = if c.rays > 0 {
@@ -210,12 +345,40 @@ pub fn time_config(
         name: name.to_string(),
         median_ms,
         frame_ms,
+        frames_per_second: 1e3 / median_ms.max(1e-9),
         rays_per_second: warm.rays.primary as f64 / (median_ms / 1e3).max(1e-12),
         nodes_per_ray: c.nodes_visited as f64 / rays,
         leaves_per_ray: c.leaves_visited as f64 / rays,
         intersections_per_ray: c.intersection_tests as f64 / rays,
+        box_tests_per_frame: Some(c.box_tests),
+        isopolygon_tests_per_frame: Some(c.intersection_tests),
+        extractions_per_frame: Some(c.polygon_extractions),
         speedup_vs_dda: None,
     })
+}
+
+fn without_mesh_counts(mut r: ConfigReport) -> ConfigReport {
+    r.box_tests_per_frame = None;
+    r.isopolygon_tests_per_frame = None;
+    r.extractions_per_frame = None;
+    r
+}
+
+/// Times `frames` frames (after a warm-up) and one statistics frame of one kd-tree
+/// configuration (also used by `isoscope accuracy`).
+pub fn time_config(
+    name: &str,
+    scene: &AnyGridScene,
+    dda: bool,
+    camera: &Camera,
+    settings: &RenderSettings,
+    frames: usize,
+) -> anyhow::Result<ConfigReport> {
+    let go = AtomicBool::new(false);
+    time_frames(name, settings, frames, &|s| {
+        render_grid(scene, dda, camera, s, &go)
+    })
+    .map(without_mesh_counts)
 }
 
 /// Primary rays of the camera, every `stride`-th pixel per axis so that at most `max` remain.
@@ -232,26 +395,24 @@ pub fn accuracy_rays(camera: &Camera, width: u32, height: u32, max: usize) -> Ve
     rays
 }
 
-/// Runs the benchmark and returns the report (no printing).
-pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
-    if args.frames == 0 {
-        bail!("--frames must be at least 1");
-    }
-    let volume = load_volume(&args.file, &args.open, args.step)?;
-    let surfaces: Vec<Surface> = surfaces_from(&args.iso, &volume)?;
-    let t0 = Instant::now();
-    let mut scene = {
-        let _spinner = Progress::spinner("building the kd-tree");
-        AnyGridScene::new(&volume, args.intersector)
-    };
-    let build_seconds = {
-        let reported = scene.build_time().as_secs_f64();
-        if reported > 0.0 {
-            reported
-        } else {
-            t0.elapsed().as_secs_f64()
-        }
-    };
+/// What every kind shares: the opened scene, camera and settings.
+struct Setup {
+    scene: AnyScene,
+    camera: Camera,
+    settings: RenderSettings,
+    isovalues: Vec<f32>,
+}
+
+fn setup(args: &Args) -> anyhow::Result<Setup> {
+    let scene = open_with_flags(
+        &args.file,
+        &args.open,
+        &args.mesh,
+        &args.ooc,
+        args.step,
+        args.intersector,
+    )?;
+    let surfaces: Vec<Surface> = surfaces_for(&args.iso, &scene)?;
     let camera = args.view.camera(&scene.world_bounds())?;
     let settings = RenderSettings {
         width: args.size[0],
@@ -261,21 +422,137 @@ pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
     };
     settings.validate()?;
     let isovalues = settings.active_isovalues().0;
+    Ok(Setup {
+        scene,
+        camera,
+        settings,
+        isovalues,
+    })
+}
 
+/// Runs the benchmark and returns the report (no printing).
+pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    if args.iso_sweep == Some(0) {
+        bail!("--iso-sweep must be at least 1");
+    }
+    let t0 = Instant::now();
+    let s = setup(args)?;
+    let kind = s.scene.kind();
+    if args.intersectors.is_some() && s.scene.as_grid().is_none() {
+        bail!(
+            "--intersectors applies to volumes; {} is a {kind} file",
+            args.file.display()
+        );
+    }
+    if args.compare_bvh && s.scene.as_tet().is_none() {
+        bail!(
+            "--compare-bvh applies to tetrahedral meshes; {} is a {kind} file",
+            args.file.display()
+        );
+    }
+    if args.iso_sweep.is_some() && s.scene.as_ooc().is_some() {
+        bail!(
+            "--iso-sweep applies to volumes and meshes: a new isovalue on an .isot file restarts loading, so its frames measure the coarse levels"
+        );
+    }
+    let mut report = match kind {
+        SceneKind::Grid => measure_grid(args, &s)?,
+        SceneKind::Tet => measure_tet(args, s)?,
+        SceneKind::Ooc => measure_ooc(args, &s, t0)?,
+    };
+    report.rays_per_second = report.configs[0].rays_per_second;
+    Ok(report)
+}
+
+fn base_report(args: &Args, s: &Setup) -> BenchReport {
+    BenchReport {
+        file: args.file.display().to_string(),
+        kind: s.scene.kind().name().to_string(),
+        dims: None,
+        voxel_type: None,
+        isovalues: s.isovalues.clone(),
+        width: args.size[0],
+        height: args.size[1],
+        frames: args.frames,
+        threads: rayon::current_num_threads(),
+        intersector: args.intersector.to_string(),
+        build_seconds: s.scene.build_time().as_secs_f64(),
+        tree_bytes: s.scene.structure_bytes(),
+        data_bytes: 0,
+        memory_overhead: 0.0,
+        rays_per_second: 0.0,
+        configs: Vec::new(),
+        intersectors: None,
+        mesh: None,
+        ooc: None,
+        iso_sweep: None,
+    }
+}
+
+/// `--iso-sweep`: frames that each change the first surface's isovalue.
+fn iso_sweep(
+    n: usize,
+    s: &Setup,
+    steady_median_ms: f64,
+    build_seconds: f64,
+) -> anyhow::Result<IsoSweepReport> {
+    let (lo, hi) = s
+        .scene
+        .value_range()
+        .context("no finite values to sweep the isovalue over")?;
+    let go = AtomicBool::new(false);
+    let progress = Progress::bar(n as u64, "isovalue sweep");
+    let mut settings = s.settings.clone();
+    let mut isovalues = Vec::with_capacity(n);
+    let mut frame_ms = Vec::with_capacity(n);
+    for k in 0..n {
+        let f = if n == 1 {
+            0.5
+        } else {
+            k as f64 / (n - 1) as f64
+        };
+        let iso = (lo + (0.25 + 0.5 * f) * (hi - lo)) as f32;
+        settings.surfaces[0].isovalue = iso;
+        let frame = s
+            .scene
+            .render(&s.camera, &settings, &go)
+            .context("cancelled")?;
+        isovalues.push(iso);
+        frame_ms.push(frame.elapsed.as_secs_f64() * 1e3);
+        progress.inc(1);
+    }
+    let base = steady_median_ms.max(1e-9);
+    Ok(IsoSweepReport {
+        median_ratio: median(&frame_ms) / base,
+        max_ratio: frame_ms.iter().copied().fold(0.0, f64::max) / base,
+        isovalues,
+        frame_ms,
+        steady_median_ms,
+        build_ms: build_seconds * 1e3,
+    })
+}
+
+fn measure_grid(args: &Args, s: &Setup) -> anyhow::Result<BenchReport> {
+    let grid = s.scene.as_grid().context("not a volume")?;
+    let mut report = base_report(args, s);
+    let (camera, settings) = (&s.camera, &s.settings);
     let mut configs = vec![
         time_config(
             "kdtree-packet",
-            &scene,
+            grid.scene(),
             false,
-            &camera,
-            &settings,
+            camera,
+            settings,
             args.frames,
         )?,
         time_config(
             "kdtree-single",
-            &scene,
+            grid.scene(),
             false,
-            &camera,
+            camera,
             &RenderSettings {
                 packets: false,
                 ..settings.clone()
@@ -286,9 +563,9 @@ pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
     if !args.skip_dda {
         let dda = time_config(
             "dda",
-            &scene,
+            grid.scene(),
             true,
-            &camera,
+            camera,
             &RenderSettings {
                 packets: false,
                 ..settings.clone()
@@ -304,11 +581,14 @@ pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
             ..dda
         });
     }
-
-    let intersectors = match &args.intersectors {
+    if let Some(n) = args.iso_sweep {
+        report.iso_sweep = Some(iso_sweep(n, s, configs[0].median_ms, report.build_seconds)?);
+    }
+    report.intersectors = match &args.intersectors {
         None => None,
         Some(IntersectorList(list)) => {
-            let rays = accuracy_rays(&camera, args.size[0], args.size[1], args.accuracy_rays);
+            let rays = accuracy_rays(camera, args.size[0], args.size[1], args.accuracy_rays);
+            let mut scene = grid.scene().clone();
             let mut rows = Vec::new();
             for &method in list {
                 scene.set_intersector(method);
@@ -316,13 +596,13 @@ pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
                     &method.to_string(),
                     &scene,
                     false,
-                    &camera,
-                    &settings,
+                    camera,
+                    settings,
                     args.frames,
                 )?;
                 let acc = {
                     let _spinner = Progress::spinner(format!("accuracy of {method}"));
-                    accuracy::compare(&scene, &rays, &isovalues, method)
+                    accuracy::compare(&scene, &rays, &s.isovalues, method)
                 };
                 rows.push(IntersectorReport {
                     name: method.to_string(),
@@ -337,66 +617,318 @@ pub fn measure(args: &Args) -> anyhow::Result<BenchReport> {
                     wrong_surface: acc.wrong_surface,
                 });
             }
-            scene.set_intersector(args.intersector);
             Some(rows)
         }
     };
-
+    let volume = grid.volume();
     let voxel_type = volume.data.voxel_type();
     let data_bytes = (volume.grid.voxel_count() * voxel_type.size_bytes()) as u64;
-    let tree_bytes = scene.memory_bytes() as u64;
-    Ok(BenchReport {
-        file: args.file.display().to_string(),
-        dims: volume.dims(),
-        voxel_type: voxel_type.name().to_string(),
-        isovalues,
-        width: args.size[0],
-        height: args.size[1],
-        frames: args.frames,
-        threads: rayon::current_num_threads(),
-        intersector: args.intersector.to_string(),
-        build_seconds,
-        tree_bytes,
-        data_bytes,
-        memory_overhead: tree_bytes as f64 / data_bytes.max(1) as f64,
-        rays_per_second: configs[0].rays_per_second,
-        configs,
-        intersectors,
-    })
+    report.dims = Some(volume.dims());
+    report.voxel_type = Some(voxel_type.name().to_string());
+    report.data_bytes = data_bytes;
+    report.memory_overhead = report.tree_bytes as f64 / data_bytes.max(1) as f64;
+    report.configs = configs;
+    Ok(report)
 }
 
-/// The human-readable tables.
-pub fn format_report(r: &BenchReport) -> String {
+fn builder_name(b: BvhBuilder) -> &'static str {
+    match b {
+        BvhBuilder::Bih => "bih",
+        BvhBuilder::Sah => "sah",
+    }
+}
+
+fn measure_tet(args: &Args, mut s: Setup) -> anyhow::Result<BenchReport> {
+    let mut report = base_report(args, &s);
+    report.intersector = "isopolygon".into();
+    let go = AtomicBool::new(false);
+    let camera = s.camera;
+    let settings = s.settings.clone();
+    let tet = s.scene.as_tet_mut().context("not a mesh")?;
+    let default_rays = tet.scene().packet_size();
+    let side = packet_side(default_rays);
+    let mut configs = Vec::new();
+    let timed = |tet: &mut crate::scene::TetData,
+                 name: String,
+                 rays: usize,
+                 packets: bool|
+     -> anyhow::Result<ConfigReport> {
+        tet.set_packet_rays(rays);
+        let st = RenderSettings {
+            packets,
+            ..settings.clone()
+        };
+        let scene = tet.scene();
+        time_frames(&name, &st, args.frames, &|x| {
+            volume_core::render::render(scene, &camera, x, &go)
+        })
+    };
+    configs.push(timed(
+        tet,
+        format!("bvh-packet-{side}x{side}"),
+        default_rays,
+        true,
+    )?);
+    if side != 2 {
+        configs.push(timed(tet, "bvh-packet-2x2".into(), 4, true)?);
+    }
+    if side != 1 {
+        configs.push(timed(tet, "bvh-single".into(), 1, false)?);
+    }
+    let other_builder = if args.compare_bvh {
+        let mine = tet.scene().bvh().options();
+        let other = BvhOptions {
+            builder: match mine.builder {
+                BvhBuilder::Bih => BvhBuilder::Sah,
+                BvhBuilder::Sah => BvhBuilder::Bih,
+            },
+            ..mine
+        };
+        let secs = {
+            let _spinner =
+                Progress::spinner(format!("building the {} BVH", builder_name(other.builder)));
+            tet.rebuild(other).as_secs_f64()
+        };
+        let info = tet.scene().bvh_info();
+        let config = timed(
+            tet,
+            format!("bvh-{}-packet-{side}x{side}", builder_name(other.builder)),
+            default_rays,
+            true,
+        )?;
+        tet.rebuild(mine);
+        Some(BuilderReport {
+            builder: builder_name(other.builder).into(),
+            build_seconds: secs,
+            bvh_nodes: info.nodes,
+            bvh_bytes: info.bytes,
+            config,
+        })
+    } else {
+        None
+    };
+    tet.set_packet_rays(default_rays);
+    let box_of = |name: &str| {
+        configs
+            .iter()
+            .find(|c| c.name == name)
+            .and_then(|c| c.box_tests_per_frame)
+    };
+    let box_test_ratio_2x2 = match (box_of("bvh-packet-2x2"), configs[0].box_tests_per_frame) {
+        (Some(a), Some(b)) if b > 0 => Some(a as f64 / b as f64),
+        _ => None,
+    };
+    let ts = tet.scene();
+    let info = ts.bvh_info();
+    let options = ts.bvh().options();
+    let data_bytes = (ts.num_points() * 16 + ts.num_tets() * 16) as u64;
+    report.mesh = Some(MeshReport {
+        tets: ts.num_tets(),
+        points: ts.num_points(),
+        field: tet.field().to_string(),
+        builder: builder_name(options.builder).into(),
+        leaf_size: options.leaf_size,
+        bvh_nodes: info.nodes,
+        bvh_leaves: info.leaves,
+        bvh_max_depth: info.max_depth,
+        mean_leaf_tets: info.mean_leaf_tets,
+        packet_side: side,
+        box_test_ratio_2x2,
+        other_builder,
+    });
+    report.data_bytes = data_bytes;
+    report.tree_bytes = info.bytes as u64;
+    report.memory_overhead = info.bytes as f64 / data_bytes.max(1) as f64;
+    if let Some(n) = args.iso_sweep {
+        report.iso_sweep = Some(iso_sweep(
+            n,
+            &s,
+            configs[0].median_ms,
+            report.build_seconds,
+        )?);
+    }
+    report.configs = configs;
+    Ok(report)
+}
+
+/// Renders `frames` timed frames of an `.isot` scene as loaded now; returns the report of
+/// the level the frames reached.
+fn time_ooc_frames(
+    o: &OocData,
+    camera: &Camera,
+    settings: &RenderSettings,
+    frames: usize,
+) -> anyhow::Result<(ConfigReport, usize)> {
+    let go = AtomicBool::new(false);
+    let (_, level) = o
+        .render_with_level(camera, settings, &go)
+        .context("cancelled")?;
+    let r = time_frames(&format!("isot-level-{level}"), settings, frames, &|x| {
+        o.render_with_level(camera, x, &go).map(|(f, _)| f)
+    })?;
+    Ok((without_mesh_counts(r), level))
+}
+
+/// `t0`: before the file was opened (time to first image counts from there).
+fn measure_ooc(args: &Args, s: &Setup, t0: Instant) -> anyhow::Result<BenchReport> {
+    let timeout = args.ooc.level_timeout()?;
+    let mut report = base_report(args, s);
+    let (camera, settings) = (&s.camera, &s.settings);
+    let file_bytes = std::fs::metadata(&args.file)
+        .with_context(|| format!("cannot read {}", args.file.display()))?
+        .len();
+    let options = super::open_args::scene_options(
+        &args.file,
+        &args.open,
+        &args.mesh,
+        &args.ooc,
+        args.step,
+        args.intersector,
+    )?;
+    let go = AtomicBool::new(false);
+    let o = s.scene.as_ooc().context("not an .isot file")?;
+    let open_seconds = o.open_time().as_secs_f64();
+    // Before any isovalue only the top treelet is resident: level 0's budget.
+    let top = o.status();
+    let t_request = Instant::now();
+    let (_, first_image_level) = o
+        .render_with_level(camera, settings, &go)
+        .context("cancelled")?;
+    let first_image_seconds = t0.elapsed().as_secs_f64();
+    let finished = {
+        let _spinner = Progress::spinner("loading treelets");
+        poll_levels(o, timeout)
+    };
+    let (finished, mut level_bytes) = finished;
+    if top.loaded_levels == 1
+        && let Some(slot) = level_bytes.first_mut()
+    {
+        *slot = Some(slot.map_or(top.resident_bytes, |b| b.min(top.resident_bytes)));
+    }
+    let finest_level_seconds = finished.then(|| t_request.elapsed().as_secs_f64());
+    let status = o.status();
+    if let Some(e) = &status.error {
+        bail!("{}: {e}", args.file.display());
+    }
+    let (finest, finest_level) = time_ooc_frames(o, camera, settings, args.frames)?;
+    let mut levels = Vec::new();
+    // Coarser levels: reopen with the budget that stops the loader right after level L.
+    for (level, &bytes) in level_bytes.iter().enumerate().take(finest_level) {
+        let Some(bytes) = bytes else { continue };
+        let opts = SceneOptions {
+            ooc: OocOptions {
+                budget_bytes: bytes,
+            },
+            ..options.clone()
+        };
+        let again = open_scene(&args.file, &opts)?;
+        let a = again.as_ooc().context("not an .isot file")?;
+        a.set_isovalues(&s.isovalues);
+        a.wait_until_finished(timeout);
+        let (r, reached) = time_ooc_frames(a, camera, settings, args.frames)?;
+        if reached == level {
+            levels.push(LevelReport {
+                level,
+                resident_bytes: a.status().resident_bytes,
+                median_ms: r.median_ms,
+                frames_per_second: r.frames_per_second,
+                rays_per_second: r.rays_per_second,
+            });
+        }
+    }
+    levels.push(LevelReport {
+        level: finest_level,
+        resident_bytes: status.resident_bytes,
+        median_ms: finest.median_ms,
+        frames_per_second: finest.frames_per_second,
+        rays_per_second: finest.rays_per_second,
+    });
+    let meta = o.volume().meta();
+    let dims = meta.layout.dims();
+    report.dims = Some(dims.map(|d| d as usize));
+    report.voxel_type = Some(meta.voxel_type.name().to_string());
+    report.build_seconds = open_seconds;
+    report.tree_bytes = status.resident_bytes;
+    report.data_bytes = meta.layout.voxel_count() * meta.voxel_type.size_bytes() as u64;
+    report.memory_overhead = report.tree_bytes as f64 / report.data_bytes.max(1) as f64;
+    report.rays_per_second = finest.rays_per_second;
+    report.configs = vec![finest];
+    report.ooc = Some(OocReport {
+        level_count: status.level_count,
+        file_bytes,
+        open_seconds,
+        first_image_seconds,
+        first_image_level,
+        finest_level_seconds,
+        loaded_levels: status.loaded_levels,
+        budget_limited: status.budget_limited,
+        resident_bytes: status.resident_bytes,
+        levels,
+    });
+    Ok(report)
+}
+
+/// Waits for the loader (at most `timeout`), sampling the resident bytes of each published
+/// level; returns whether it finished and, per level, the smallest resident size seen with
+/// exactly that many levels (the budget that stops loading there).
+fn poll_levels(o: &OocData, timeout: Duration) -> (bool, Vec<Option<u64>>) {
+    let deadline = Instant::now() + timeout;
+    let mut bytes: Vec<Option<u64>> = vec![None; o.status().level_count];
+    loop {
+        let st = o.status();
+        // Read again: a level published between the two reads pairs the wrong numbers.
+        let levels = st.loaded_levels;
+        let again = o.status();
+        if again.loaded_levels == levels
+            && again.resident_bytes == st.resident_bytes
+            && let Some(slot) = levels.checked_sub(1).and_then(|l| bytes.get_mut(l))
+        {
+            *slot = Some(slot.map_or(st.resident_bytes, |b| b.min(st.resident_bytes)));
+        }
+        if st.finished && again.finished {
+            return (true, bytes);
+        }
+        if Instant::now() >= deadline {
+            return (false, bytes);
+        }
+        std::thread::sleep(Duration::from_micros(500));
+    }
+}
+fn config_table(s: &mut String, configs: &[ConfigReport], mesh: bool) {
     use std::fmt::Write as _;
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "{}: {}x{}x{} {}, isovalues {:?}, {}x{} pixels, {} threads, intersector {}",
-        r.file,
-        r.dims[0],
-        r.dims[1],
-        r.dims[2],
-        r.voxel_type,
-        r.isovalues,
-        r.width,
-        r.height,
-        r.threads,
-        r.intersector
-    );
-    let _ = writeln!(
-        s,
-        "kd-tree build {:.1} ms, {} bytes = {:.3}x the {} voxel bytes",
-        r.build_seconds * 1e3,
-        r.tree_bytes,
-        r.memory_overhead,
-        r.data_bytes
-    );
+    if mesh {
+        let _ = writeln!(
+            s,
+            "\n{:<22} {:>10} {:>9} {:>10} {:>14} {:>14} {:>12}",
+            "config",
+            "ms/frame",
+            "frames/s",
+            "Mrays/s",
+            "box tests",
+            "isopoly tests",
+            "extractions"
+        );
+        for c in configs {
+            let _ = writeln!(
+                s,
+                "{:<22} {:>10.2} {:>9.1} {:>10.2} {:>14} {:>14} {:>12}",
+                c.name,
+                c.median_ms,
+                c.frames_per_second,
+                c.rays_per_second / 1e6,
+                c.box_tests_per_frame.unwrap_or(0),
+                c.isopolygon_tests_per_frame.unwrap_or(0),
+                c.extractions_per_frame.unwrap_or(0)
+            );
+        }
+        return;
+    }
     let _ = writeln!(
         s,
         "\n{:<14} {:>10} {:>10} {:>11} {:>11} {:>13} {:>9}",
         "config", "ms/frame", "Mrays/s", "nodes/ray", "leaves/ray", "isects/ray", "vs DDA"
     );
-    for c in &r.configs {
+    for c in configs {
         let _ = writeln!(
             s,
             "{:<14} {:>10.2} {:>10.2} {:>11.1} {:>11.1} {:>13.2} {:>9}",
@@ -408,6 +940,122 @@ pub fn format_report(r: &BenchReport) -> String {
             c.intersections_per_ray,
             c.speedup_vs_dda
                 .map_or_else(|| "-".to_string(), |x| format!("{x:.1}x"))
+        );
+    }
+}
+
+/// The human-readable tables.
+pub fn format_report(r: &BenchReport) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let what = match (&r.dims, &r.voxel_type, &r.mesh) {
+        (_, _, Some(m)) => format!(
+            "tet mesh, {} tets, {} points, field \"{}\"",
+            m.tets, m.points, m.field
+        ),
+        (Some(d), Some(t), _) => format!("{}x{}x{} {t}", d[0], d[1], d[2]),
+        _ => r.kind.clone(),
+    };
+    let _ = writeln!(
+        s,
+        "{}: {what}, isovalues {:?}, {}x{} pixels, {} threads, intersector {}",
+        r.file, r.isovalues, r.width, r.height, r.threads, r.intersector
+    );
+    if let Some(m) = &r.mesh {
+        let _ = writeln!(
+            s,
+            "BVH ({}, leaves <= {}) built in {:.1} ms: {} nodes, {} leaves, depth {}, {:.1} tets/leaf, {} bytes = {:.3}x the {} data bytes",
+            m.builder,
+            m.leaf_size,
+            r.build_seconds * 1e3,
+            m.bvh_nodes,
+            m.bvh_leaves,
+            m.bvh_max_depth,
+            m.mean_leaf_tets,
+            r.tree_bytes,
+            r.memory_overhead,
+            r.data_bytes
+        );
+        config_table(&mut s, &r.configs, true);
+        if let Some(x) = m.box_test_ratio_2x2 {
+            let _ = writeln!(
+                s,
+                "\nray-box tests: 2x2 packets need {x:.1}x those of {0}x{0} packets",
+                m.packet_side
+            );
+        }
+        if let Some(o) = &m.other_builder {
+            let _ = writeln!(
+                s,
+                "\nother builder {}: built in {:.1} ms, {} nodes, {} bytes",
+                o.builder,
+                o.build_seconds * 1e3,
+                o.bvh_nodes,
+                o.bvh_bytes
+            );
+            config_table(&mut s, std::slice::from_ref(&o.config), true);
+        }
+    } else if let Some(o) = &r.ooc {
+        let _ = writeln!(
+            s,
+            "open {:.1} ms; first image after {:.1} ms (level {}); finest level {} of {} levels {}; {} bytes resident of a {} byte file{}",
+            o.open_seconds * 1e3,
+            o.first_image_seconds * 1e3,
+            o.first_image_level,
+            o.loaded_levels.saturating_sub(1),
+            o.level_count,
+            o.finest_level_seconds.map_or_else(
+                || "not reached before --level-timeout".to_string(),
+                |t| format!("after {:.1} ms", t * 1e3)
+            ),
+            o.resident_bytes,
+            o.file_bytes,
+            if o.budget_limited {
+                " (memory budget reached)"
+            } else {
+                ""
+            }
+        );
+        let _ = writeln!(
+            s,
+            "\n{:>6} {:>14} {:>10} {:>9} {:>10}",
+            "level", "resident bytes", "ms/frame", "frames/s", "Mrays/s"
+        );
+        for l in &o.levels {
+            let _ = writeln!(
+                s,
+                "{:>6} {:>14} {:>10.2} {:>9.1} {:>10.2}",
+                l.level,
+                l.resident_bytes,
+                l.median_ms,
+                l.frames_per_second,
+                l.rays_per_second / 1e6
+            );
+        }
+    } else {
+        let _ = writeln!(
+            s,
+            "kd-tree build {:.1} ms, {} bytes = {:.3}x the {} voxel bytes",
+            r.build_seconds * 1e3,
+            r.tree_bytes,
+            r.memory_overhead,
+            r.data_bytes
+        );
+        config_table(&mut s, &r.configs, false);
+    }
+    if let Some(w) = &r.iso_sweep {
+        let _ = writeln!(
+            s,
+            "\nisovalue sweep: {} frames, each with a new isovalue ({} .. {}): median {:.2} ms, max {:.2} ms = {:.2}x / {:.2}x the steady {:.2} ms (a rebuild would add {:.1} ms)",
+            w.frame_ms.len(),
+            w.isovalues.first().copied().unwrap_or(0.0),
+            w.isovalues.last().copied().unwrap_or(0.0),
+            median(&w.frame_ms),
+            w.frame_ms.iter().copied().fold(0.0, f64::max),
+            w.median_ratio,
+            w.max_ratio,
+            w.steady_median_ms,
+            w.build_ms
         );
     }
     if let Some(rows) = &r.intersectors {

@@ -1,6 +1,16 @@
 //! `isoscope generate NAME [--size N|XxYxZ] [--type T] [--steps S] [--encoding raw|gzip] -o FILE.nrrd`
+//! and `isoscope generate tet-ball|tet-shell|tet-torus [--tets N | --size N] [--steps S]
+//! -o FILE.vtu|FILE.vtk`
 //!
-//! Writes one of the `data-samples` generators as NRRD. The time series (`blobs`) is written
+//! Writes one of the `data-samples` generators as NRRD, or one of its tetrahedral meshes
+//! ([`data_samples::tets`]: a structured grid of `--size` cells per axis on [−1, 1]³, the
+//! cells whose centre is inside the shape split into 6 tets each; `--tets N` picks the size
+//! that gives about N tets) as VTK XML `.vtu` (appended raw) or legacy binary `.vtk`, with the
+//! point arrays `distance`, `gaussians` and `moving_gaussian`. With `--steps S` a mesh is
+//! written as a time series: `FILE_000.vtu` ... (the moving Gaussian at each step, the same
+//! points and tets) and a ParaView collection `FILE.pvd` that lists them.
+//!
+//! The volume generators' output: The time series (`blobs`) is written
 //! as numbered files `FILE_000.nrrd`, `FILE_001.nrrd`, ... (or the printf pattern given with
 //! `-o`, e.g. `-o blobs_%03d.nrrd`), which `formats::open` (and so `isoscope info`) reads back
 //! as a series from the pattern. Existing files are not overwritten without `--force`.
@@ -9,7 +19,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
 use data_samples::Generator;
+use data_samples::tets::TetShape;
 use formats::nrrd::{NrrdEncoding, write_nrrd};
+use volume_core::tet::{PointField, TetMesh};
 use volume_core::{RectilinearVolume, VoxelType};
 
 use super::open_args::parse_voxel_type;
@@ -33,30 +45,52 @@ impl From<Encoding> for NrrdEncoding {
     }
 }
 
+/// What `generate` makes: a volume generator or a tetrahedral mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GenName {
+    Volume(Generator),
+    Mesh(TetShape),
+}
+
+impl std::fmt::Display for GenName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            GenName::Volume(g) => write!(f, "{g}"),
+            GenName::Mesh(m) => write!(f, "{m}"),
+        }
+    }
+}
+
 /// Arguments of `isoscope generate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Generator: marschner-lobb, sphere, torus, nested-spheres, phantom, blobs.
-    #[arg(value_parser = parse_generator)]
-    pub name: Generator,
+    /// Generator: marschner-lobb, sphere, torus, nested-spheres, phantom, blobs (NRRD
+    /// volumes); tet-ball, tet-shell, tet-torus (tetrahedral meshes, .vtu or .vtk).
+    #[arg(value_parser = parse_name)]
+    pub name: GenName,
     /// Samples per axis: N (N³; the phantom keeps its aspect, N×N×0.43N) or XxYxZ.
-    /// Default: marschner-lobb 41, phantom 256x256x110, others 64.
+    /// Default: marschner-lobb 41, phantom 256x256x110, others 64. Meshes: N grid cells per
+    /// axis (default: the size for --tets).
     #[arg(long, value_name = "N|XxYxZ", value_parser = parse_size)]
     pub size: Option<Size>,
+    /// Meshes: about this many tetrahedra (default 100000).
+    #[arg(long, value_name = "N", conflicts_with = "size")]
+    pub tets: Option<usize>,
     /// Voxel type (u8, i8, u16, i16, u32, i32, f32, f64). Default: i16 for the phantom,
     /// f32 otherwise. Integer types store a documented linear map of the field (see
     /// data-samples/README.md).
     #[arg(long = "type", value_name = "TYPE", value_parser = parse_voxel_type)]
     pub voxel_type: Option<VoxelType>,
-    /// Number of time steps (blobs only; default 20).
+    /// Number of time steps (blobs: default 20; meshes: a moving-Gaussian series with a .pvd).
     #[arg(long, value_name = "S")]
     pub steps: Option<usize>,
     /// NRRD data encoding.
     #[arg(long, value_enum, default_value = "raw")]
     pub encoding: Encoding,
-    /// Output file (.nrrd). For series: FILE.nrrd writes FILE_000.nrrd, FILE_001.nrrd, ...;
-    /// a name with a printf pattern (FILE_%03d.nrrd) is used as given.
-    #[arg(short, long, value_name = "FILE.nrrd")]
+    /// Output file (.nrrd; meshes .vtu or .vtk). For series: FILE.nrrd writes FILE_000.nrrd,
+    /// FILE_001.nrrd, ...; a name with a printf pattern (FILE_%03d.nrrd) is used as given.
+    /// Mesh series: FILE.vtu writes FILE_000.vtu, ... and FILE.pvd.
+    #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Overwrite existing output files.
     #[arg(long)]
@@ -70,14 +104,22 @@ pub enum Size {
     Dims([usize; 3]),
 }
 
-fn parse_generator(s: &str) -> Result<Generator, String> {
-    Generator::from_name(s).ok_or_else(|| {
-        let names: Vec<&str> = Generator::ALL.iter().map(|g| g.name()).collect();
-        format!(
-            "unknown generator `{s}`: expected one of {}",
-            names.join(", ")
-        )
-    })
+fn parse_name(s: &str) -> Result<GenName, String> {
+    if let Some(g) = Generator::from_name(s) {
+        return Ok(GenName::Volume(g));
+    }
+    if let Some(m) = TetShape::from_name(s) {
+        return Ok(GenName::Mesh(m));
+    }
+    let names: Vec<&str> = Generator::ALL
+        .iter()
+        .map(|g| g.name())
+        .chain(TetShape::ALL.iter().map(|m| m.name()))
+        .collect();
+    Err(format!(
+        "unknown generator `{s}`: expected one of {}",
+        names.join(", ")
+    ))
 }
 
 fn parse_size(s: &str) -> Result<Size, String> {
@@ -170,9 +212,165 @@ fn check_output_name(path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Generates and writes; returns what was written.
+/// What a run of `generate` wrote for a mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeneratedMesh {
+    pub files: Vec<PathBuf>,
+    /// The path to open the result with (the `.pvd` for a series).
+    pub open_path: PathBuf,
+    /// Grid cells per axis.
+    pub cells: usize,
+    pub tets: usize,
+    pub points: usize,
+}
+
+/// Default target tet count of the mesh generators.
+pub const DEFAULT_TETS: usize = 100_000;
+
+/// Generates and writes a tetrahedral mesh (or a series of them).
+pub fn generate_mesh(args: &Args, shape: TetShape) -> anyhow::Result<GeneratedMesh> {
+    if args.voxel_type.is_some() {
+        bail!("--type applies to volumes; {shape} writes f32 point arrays");
+    }
+    if args.encoding != Encoding::Raw {
+        bail!("--encoding applies to NRRD volumes; meshes are written as VTK files");
+    }
+    let cells = match (args.size, args.tets) {
+        (Some(Size::Cube(n)), _) => n,
+        (Some(Size::Dims(_)), _) => {
+            bail!("--size for a mesh is one number: grid cells per axis (e.g. --size 40)")
+        }
+        (None, Some(0)) => bail!("--tets must be at least 1"),
+        (None, t) => data_samples::tets::cells_for_tets(shape, t.unwrap_or(DEFAULT_TETS)),
+    };
+    if cells > 1000 {
+        bail!("{cells} cells per axis is too large a mesh (at most 1000, about 3e9 tets)");
+    }
+    let ext = args
+        .output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let legacy = match ext.as_deref() {
+        Some("vtu") => false,
+        Some("vtk") => true,
+        _ => bail!(
+            "output `{}` must end in .vtu or .vtk (meshes are written as VTK files)",
+            args.output.display()
+        ),
+    };
+    let steps = match args.steps {
+        Some(0) => bail!("--steps must be at least 1"),
+        s => s,
+    };
+    let (open_path, files) = match steps {
+        None => (args.output.clone(), vec![args.output.clone()]),
+        Some(n) => {
+            let stem = args
+                .output
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .context("the output path has no file name")?;
+            let dir = args.output.parent().unwrap_or(Path::new(""));
+            let ext = ext.as_deref().unwrap_or("vtu");
+            let files: Vec<PathBuf> = (0..n)
+                .map(|k| dir.join(format!("{stem}_{k:03}.{ext}")))
+                .collect();
+            (dir.join(format!("{stem}.pvd")), files)
+        }
+    };
+    let mut all = files.clone();
+    if steps.is_some() {
+        all.push(open_path.clone());
+    }
+    if !args.force
+        && let Some(existing) = all.iter().find(|f| f.exists())
+    {
+        bail!(
+            "{} exists; pass --force to overwrite it",
+            existing.display()
+        );
+    }
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty())
+        && !dir.is_dir()
+    {
+        bail!("output directory {} does not exist", dir.display());
+    }
+    let mesh = {
+        let _spinner = Progress::spinner(format!("generating {shape} ({cells} cells per axis)"));
+        data_samples::tets::tet_mesh(shape, cells)
+            .with_context(|| format!("generating {shape} with {cells} cells per axis"))?
+    };
+    let write = |path: &Path, m: &TetMesh| -> anyhow::Result<()> {
+        if legacy {
+            formats::mesh::write_vtk_legacy(path, m, formats::mesh::LegacyEncoding::Binary)?;
+        } else {
+            formats::mesh::write_vtu(path, m)?;
+        }
+        Ok(())
+    };
+    match steps {
+        None => write(&files[0], &mesh)?,
+        Some(n) => {
+            let values = data_samples::tets::moving_gaussian_steps(&mesh, n);
+            let progress = Progress::bar(n as u64, format!("writing {shape} steps"));
+            let mut step_mesh = mesh.clone();
+            for (file, v) in files.iter().zip(values) {
+                if let Some(f) = step_mesh
+                    .fields
+                    .iter_mut()
+                    .find(|f| f.name == "moving_gaussian")
+                {
+                    *f = PointField::new("moving_gaussian", v);
+                }
+                write(file, &step_mesh)?;
+                progress.inc(1);
+            }
+            progress.finish();
+            write_pvd(&open_path, &files)?;
+        }
+    }
+    Ok(GeneratedMesh {
+        files,
+        open_path,
+        cells,
+        tets: mesh.num_tets(),
+        points: mesh.num_points(),
+    })
+}
+
+/// A ParaView collection listing `files` (relative to the `.pvd`'s folder), time = index.
+fn write_pvd(path: &Path, files: &[PathBuf]) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut xml = String::from(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n",
+    );
+    for (k, f) in files.iter().enumerate() {
+        let name = f
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let name = name
+            .replace('&', "&amp;")
+            .replace('"', "&quot;")
+            .replace('<', "&lt;");
+        let _ = writeln!(
+            xml,
+            "    <DataSet timestep=\"{k}\" part=\"0\" file=\"{name}\"/>"
+        );
+    }
+    xml.push_str("  </Collection>\n</VTKFile>\n");
+    std::fs::write(path, xml).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Generates and writes a volume; returns what was written.
 pub fn generate(args: &Args) -> anyhow::Result<Generated> {
-    let g = args.name;
+    let g = match args.name {
+        GenName::Volume(g) => g,
+        GenName::Mesh(m) => bail!("{m} is a mesh: use generate_mesh"),
+    };
+    if args.tets.is_some() {
+        bail!("--tets applies to the mesh generators (tet-ball, tet-shell, tet-torus)");
+    }
     let dims = match args.size {
         None => g.default_dims(),
         Some(Size::Cube(n)) => g.dims_for_size(n),
@@ -241,8 +439,29 @@ pub fn generate(args: &Args) -> anyhow::Result<Generated> {
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    let g = match args.name {
+        GenName::Volume(g) => g,
+        GenName::Mesh(shape) => {
+            let out = generate_mesh(args, shape)?;
+            if out.files.len() == 1 {
+                println!("wrote {}", out.open_path.display());
+            } else {
+                println!(
+                    "wrote {} steps: {} .. {} and the collection {}",
+                    out.files.len(),
+                    out.files[0].display(),
+                    out.files[out.files.len() - 1].display(),
+                    out.open_path.display()
+                );
+            }
+            println!(
+                "{shape}: {} tets, {} points ({} grid cells per axis); point arrays distance, gaussians, moving_gaussian; suggested: --field distance --iso 0.5",
+                out.tets, out.points, out.cells
+            );
+            return Ok(());
+        }
+    };
     let out = generate(args)?;
-    let g = args.name;
     let map = g.value_map(out.voxel_type);
     let isos: Vec<String> = g
         .suggested_isovalues()
@@ -300,9 +519,10 @@ mod tests {
         assert_eq!(parse_generator("phantom"), Ok(Generator::Phantom));
         let e = parse_generator("spheres").unwrap_err();
         assert!(
-            e.contains("nested-spheres") && e.contains("marschner-lobb"),
+            e.contains("nested-spheres") && e.contains("marschner-lobb") && e.contains("tet-ball"),
             "{e}"
         );
+        assert_eq!(parse_name("tet-torus"), Ok(GenName::Mesh(TetShape::Torus)));
     }
 
     #[test]

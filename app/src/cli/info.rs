@@ -1,13 +1,17 @@
-//! `isoscope info FILE [--json]`: geometry, voxel type, value range, time steps and a histogram.
+//! `isoscope info FILE [--json]`: geometry, voxel type, value range, time steps and a histogram
+//! for volumes; tets, points, bounds and every point array's value range for tetrahedral
+//! meshes; geometry, levels and treelets for `.isot` files.
 //!
-//! The `--json` output is a stable interface (documented in `docs/cli.md`): [`InfoReport`] is
-//! serialized as is, so renaming a field is a breaking change. Value range, non-finite counts
-//! and the histogram cover every time step of a series (two passes over the steps, with a
-//! progress bar when that takes a while).
+//! The `--json` output is a stable interface (documented in `docs/cli.md`): [`InfoReport`]
+//! (volumes, `"kind": "grid"`), [`MeshInfoReport`] (`"kind": "tet"`) and [`IsotInfoReport`]
+//! (`"kind": "isot"`) are serialized as they are, so renaming a field is a breaking change.
+//! Value ranges, non-finite counts and the histogram cover every time step of a series (a
+//! pass over the steps, with a progress bar when that takes a while).
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context as _;
+use anyhow::{Context as _, bail};
+use formats::mesh::MeshSeries;
 use serde::Serialize;
 use volume_core::series::TimeSeries;
 use volume_core::stats::{Histogram, ValueStats};
@@ -15,6 +19,7 @@ use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
 
 use super::open_args::OpenArgs;
 use crate::progress::Progress;
+use crate::scene::{SceneKind, detect_kind};
 
 /// Number of histogram bins.
 pub const HISTOGRAM_BINS: usize = 64;
@@ -22,8 +27,9 @@ pub const HISTOGRAM_BINS: usize = 64;
 /// Arguments of `isoscope info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), or a
-    /// time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'.
+    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), a
+    /// time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral mesh (.vtk,
+    /// .vtu, .msh, .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an .isot file.
     pub file: PathBuf,
     /// Print machine-readable JSON (a stable interface, see docs/cli.md).
     #[arg(long)]
@@ -41,11 +47,13 @@ pub struct HistogramReport {
     pub counts: Vec<u64>,
 }
 
-/// What `info` reports; the `--json` schema.
+/// What `info` reports for a volume; the `--json` schema.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct InfoReport {
     /// The path as given.
     pub file: String,
+    /// `"grid"`.
+    pub kind: String,
     /// Samples per axis `[x, y, z]`, x fastest.
     pub dims: [usize; 3],
     /// `"u8"`, `"i8"`, `"u16"`, `"i16"`, `"u32"`, `"i32"`, `"f32"` or `"f64"`.
@@ -187,6 +195,7 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
         .collect();
     Ok(InfoReport {
         file: path.display().to_string(),
+        kind: SceneKind::Grid.name().to_string(),
         dims: grid.dims(),
         voxel_type: first.data.voxel_type(),
         spacing: grid.uniform_spacing(),
@@ -333,13 +342,319 @@ pub fn render_text(r: &InfoReport) -> String {
     out
 }
 
+/// One point array of a mesh.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ArrayReport {
+    pub name: String,
+    /// Smallest and largest non-NaN value over all steps, `null` if there is none.
+    pub value_range: Option<[f64; 2]>,
+    /// NaN values (void data) over all steps.
+    pub nan_count: u64,
+}
+
+/// What `info` reports for a tetrahedral mesh (`"kind": "tet"`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeshInfoReport {
+    /// The path as given.
+    pub file: String,
+    /// `"tet"`.
+    pub kind: String,
+    /// Tetrahedra after splitting hexahedra, wedges and pyramids.
+    pub tets: usize,
+    pub points: usize,
+    /// Cells in the file before splitting and skipping.
+    pub source_cells: usize,
+    /// Non-volume cells that were skipped (vertices, lines, triangles, ...).
+    pub skipped_cells: usize,
+    /// Names of the scalar point arrays, in file order (`--field` takes one of them).
+    pub arrays: Vec<String>,
+    /// Each array's value range.
+    pub array_ranges: Vec<ArrayReport>,
+    /// Point arrays that are not scalar fields (vectors, tensors): `"name: why"`.
+    pub skipped_arrays: Vec<String>,
+    /// Bounds of the points of the first step: `[[x0, y0, z0], [x1, y1, z1]]`.
+    pub bounds: [[f64; 3]; 2],
+    /// 1 for a single mesh.
+    pub time_steps: usize,
+    /// Time of each step (from the .pvd; the step index otherwise).
+    pub time_values: Vec<f64>,
+}
+
+/// What `info` reports for an `.isot` out-of-core file (`"kind": "isot"`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IsotInfoReport {
+    pub file: String,
+    /// `"isot"`.
+    pub kind: String,
+    pub dims: [u64; 3],
+    pub voxel_type: VoxelType,
+    /// Uniform sample spacing, `null` for explicit coordinates.
+    pub spacing: Option<[f64; 3]>,
+    /// Grid-frame positions of the first and last voxel.
+    pub origin: [f64; 3],
+    pub extent_max: [f64; 3],
+    /// The finite value range recorded in the file (the min/max quantizer's range).
+    pub value_range: Option<[f64; 2]>,
+    pub voxel_count: u64,
+    /// Treelet levels (LOD levels; the last is the full resolution).
+    pub levels: usize,
+    pub treelet_height: u32,
+    pub treelets: u64,
+    /// Bits per quantized min/max code.
+    pub quantizer_bits: u32,
+    pub file_bytes: u64,
+}
+
+/// Any of the three reports (serialized without a wrapper: see each `kind`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+#[allow(clippy::large_enum_variant)] // one value per run
+pub enum AnyInfo {
+    Grid(InfoReport),
+    Tet(MeshInfoReport),
+    Isot(IsotInfoReport),
+}
+
+/// Reads `path` as a mesh (a single file, a `.pvd` or a pattern) and gathers the report.
+pub fn gather_mesh(path: &Path) -> anyhow::Result<MeshInfoReport> {
+    let is_pvd = formats::mesh::MeshFormat::from_path(path) == Some(formats::mesh::MeshFormat::Pvd);
+    let series = if is_pvd {
+        Some(formats::mesh::read_pvd(path)?)
+    } else if !path.exists() && formats::series::is_pattern(path) {
+        Some(MeshSeries::from_files(formats::series::expand_pattern(
+            path,
+        )?))
+    } else {
+        None
+    };
+    let first = {
+        let _spinner = Progress::spinner(format!("reading {}", path.display()));
+        match &series {
+            Some(s) => s.load_step(0)?,
+            None => formats::mesh::read_mesh(path)?,
+        }
+    };
+    let mesh = &first.mesh;
+    let steps = series.as_ref().map_or(1, MeshSeries::len);
+    let mut ranges: Vec<ArrayReport> = mesh
+        .fields
+        .iter()
+        .map(|f| ArrayReport {
+            name: f.name.clone(),
+            value_range: None,
+            nan_count: 0,
+        })
+        .collect();
+    let mut add = |fields: &[volume_core::tet::PointField]| {
+        for r in &mut ranges {
+            let Some(f) = fields.iter().find(|f| f.name == r.name) else {
+                continue;
+            };
+            r.nan_count += f.values.iter().filter(|v| v.is_nan()).count() as u64;
+            if let Some((lo, hi)) = f.value_range() {
+                let (lo, hi) = (f64::from(lo), f64::from(hi));
+                r.value_range = Some(match r.value_range {
+                    Some([a, b]) => [a.min(lo), b.max(hi)],
+                    None => [lo, hi],
+                });
+            }
+        }
+    };
+    add(&mesh.fields);
+    if let Some(s) = &series {
+        let progress = Progress::bar(steps as u64, "value ranges");
+        progress.inc(1);
+        for i in 1..steps {
+            let d = s
+                .load_step_data(i, mesh)
+                .with_context(|| format!("time step {i} of {}", path.display()))?;
+            add(&d.fields);
+            progress.inc(1);
+        }
+    }
+    let b = mesh.bounds();
+    let bounds = if mesh.points.is_empty() {
+        [[0.0; 3]; 2]
+    } else {
+        [b.min.as_dvec3().to_array(), b.max.as_dvec3().to_array()]
+    };
+    Ok(MeshInfoReport {
+        file: path.display().to_string(),
+        kind: SceneKind::Tet.name().to_string(),
+        tets: mesh.num_tets(),
+        points: mesh.num_points(),
+        source_cells: first.source_cells,
+        skipped_cells: first.skipped.total(),
+        arrays: mesh.fields.iter().map(|f| f.name.clone()).collect(),
+        array_ranges: ranges,
+        skipped_arrays: first
+            .skipped_arrays
+            .iter()
+            .map(|(n, why)| format!("{n}: {why}"))
+            .collect(),
+        bounds,
+        time_steps: steps,
+        time_values: match &series {
+            Some(s) => s.steps.iter().map(|st| st.time).collect(),
+            None => vec![0.0],
+        },
+    })
+}
+
+/// Opens `path` as an `.isot` file (header, level table and file length are checked) and
+/// gathers the report.
+pub fn gather_isot(path: &Path) -> anyhow::Result<IsotInfoReport> {
+    use volume_core::ooc::TreeletStorage as _;
+    let file = formats::treelet::IsotFile::open(path)?;
+    let meta = file.meta();
+    let (lo, hi) = meta.grid.grid_bounds();
+    let q = &meta.quantizer;
+    Ok(IsotInfoReport {
+        file: path.display().to_string(),
+        kind: SceneKind::Ooc.name().to_string(),
+        dims: meta.layout.dims(),
+        voxel_type: meta.voxel_type,
+        spacing: meta.grid.uniform_spacing(),
+        origin: lo.to_array(),
+        extent_max: hi.to_array(),
+        value_range: (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi).then_some([q.lo, q.hi]),
+        voxel_count: meta.layout.voxel_count(),
+        levels: meta.layout.level_count(),
+        treelet_height: meta.layout.treelet_height(),
+        treelets: meta.layout.treelet_count(),
+        quantizer_bits: q.bits,
+        file_bytes: std::fs::metadata(path)
+            .with_context(|| format!("cannot read {}", path.display()))?
+            .len(),
+    })
+}
+
+/// The text form of a mesh report.
+pub fn render_mesh_text(r: &MeshInfoReport) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(out, "file:         {}", r.file);
+    let _ = writeln!(out, "kind:         tetrahedral mesh");
+    let _ = writeln!(
+        out,
+        "tets:         {} (from {} cells in the file; hexahedra, wedges and pyramids split)",
+        r.tets, r.source_cells
+    );
+    if r.skipped_cells > 0 {
+        let _ = writeln!(out, "skipped:      {} non-volume cells", r.skipped_cells);
+    }
+    let _ = writeln!(out, "points:       {}", r.points);
+    let _ = writeln!(
+        out,
+        "bounds:       {} .. {}",
+        fmt3(r.bounds[0]),
+        fmt3(r.bounds[1])
+    );
+    let _ = writeln!(
+        out,
+        "arrays:       {} scalar point arrays (draw one with --field NAME)",
+        r.arrays.len()
+    );
+    let width = r.arrays.iter().map(String::len).max().unwrap_or(0);
+    for a in &r.array_ranges {
+        let range = a.value_range.map_or_else(
+            || "no finite value".to_string(),
+            |[lo, hi]| format!("{lo} .. {hi}"),
+        );
+        let nan = if a.nan_count > 0 {
+            format!("  ({} NaN)", a.nan_count)
+        } else {
+            String::new()
+        };
+        let _ = writeln!(out, "  {:<width$}  {range}{nan}", a.name);
+    }
+    for s in &r.skipped_arrays {
+        let _ = writeln!(out, "  (not a scalar array: {s})");
+    }
+    if r.time_steps == 1 {
+        let _ = writeln!(out, "time steps:   1");
+    } else {
+        let first = r.time_values.first().copied().unwrap_or(0.0);
+        let last = r.time_values.last().copied().unwrap_or(0.0);
+        let _ = writeln!(
+            out,
+            "time steps:   {} (t = {first} .. {last})",
+            r.time_steps
+        );
+    }
+    out
+}
+
+/// The text form of an `.isot` report.
+pub fn render_isot_text(r: &IsotInfoReport) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(out, "file:         {}", r.file);
+    let _ = writeln!(
+        out,
+        "kind:         out-of-core treelet file (.isot), {}",
+        human_bytes(r.file_bytes)
+    );
+    let _ = writeln!(
+        out,
+        "dims:         {} x {} x {}  ({} voxels)",
+        r.dims[0], r.dims[1], r.dims[2], r.voxel_count
+    );
+    let _ = writeln!(out, "voxel type:   {}", r.voxel_type);
+    if let Some(s) = r.spacing {
+        let _ = writeln!(out, "spacing:      {}", fmt3(s));
+    }
+    let _ = writeln!(
+        out,
+        "extent:       {} .. {}",
+        fmt3(r.origin),
+        fmt3(r.extent_max)
+    );
+    match r.value_range {
+        Some([lo, hi]) => {
+            let _ = writeln!(out, "value range:  {lo} .. {hi}");
+        }
+        None => {
+            let _ = writeln!(out, "value range:  none (no finite voxel)");
+        }
+    }
+    let _ = writeln!(
+        out,
+        "treelets:     {} in {} levels, height {}, min/max in {} bits",
+        r.treelets, r.levels, r.treelet_height, r.quantizer_bits
+    );
+    out
+}
+
+/// Gathers the report of whatever `path` is.
+pub fn gather_any(path: &Path, open: &OpenArgs) -> anyhow::Result<AnyInfo> {
+    let kind = detect_kind(path);
+    if kind != SceneKind::Grid && open.any() {
+        bail!(
+            "the raw-file flags (--dims, --type, ...) apply to raw volumes; {} is a {kind} file",
+            path.display()
+        );
+    }
+    Ok(match kind {
+        SceneKind::Grid => AnyInfo::Grid(gather(path, &open.open_options()?)?),
+        SceneKind::Tet => AnyInfo::Tet(gather_mesh(path)?),
+        SceneKind::Ooc => AnyInfo::Isot(gather_isot(path)?),
+    })
+}
+
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    let options = args.open.open_options()?;
-    let report = gather(&args.file, &options)?;
+    let report = gather_any(&args.file, &args.open)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print!("{}", render_text(&report));
+        print!(
+            "{}",
+            match &report {
+                AnyInfo::Grid(r) => render_text(r),
+                AnyInfo::Tet(r) => render_mesh_text(r),
+                AnyInfo::Isot(r) => render_isot_text(r),
+            }
+        );
     }
     Ok(())
 }
@@ -351,6 +666,7 @@ mod tests {
     fn report() -> InfoReport {
         InfoReport {
             file: "x.nrrd".into(),
+            kind: "grid".into(),
             dims: [2, 3, 4],
             voxel_type: VoxelType::F32,
             spacing: Some([1.0, 2.0, 3.0]),
@@ -385,6 +701,28 @@ mod tests {
         assert_eq!(j["histogram"]["counts"], serde_json::json!([20, 0, 3]));
         assert_eq!(j["time_steps"], 1);
         assert_eq!(j["file"], "x.nrrd");
+        assert_eq!(j["kind"], "grid");
+        let any = serde_json::to_value(AnyInfo::Grid(report())).unwrap();
+        assert_eq!(any, j, "no wrapper object around the report");
+    }
+
+    #[test]
+    fn mesh_reports_count_split_tets_and_every_array() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("ball.vtu");
+        let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, 6).unwrap();
+        formats::mesh::write_vtu(&p, &mesh).unwrap();
+        let r = gather_mesh(&p).unwrap();
+        assert_eq!(r.tets, mesh.num_tets());
+        assert_eq!(r.points, mesh.num_points());
+        assert_eq!(r.arrays, ["distance", "gaussians", "moving_gaussian"]);
+        let d = mesh.field("distance").unwrap().value_range().unwrap();
+        assert_eq!(
+            r.array_ranges[0].value_range,
+            Some([f64::from(d.0), f64::from(d.1)])
+        );
+        let t = render_mesh_text(&r);
+        assert!(t.contains("gaussians") && t.contains("tets:"), "{t}");
     }
 
     #[test]

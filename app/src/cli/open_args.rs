@@ -6,10 +6,23 @@
 //! [--origin x,y,z]`. `--dims` and `--type` are required together; `--endian` is required for
 //! multi-byte types (guessing it silently gives a wrong picture); spacing defaults to 1,
 //! header bytes and origin to 0.
+//!
+//! [`MeshArgs`] (tetrahedral meshes: `--field`, `--bvh`, `--leaf-size`, `--packet`,
+//! `--normals`) and [`OocArgs`] (`.isot` files: `--level-timeout`, `--budget-mb`) are shared by
+//! `render` and `bench`; [`scene_options`] turns them into [`crate::scene::SceneOptions`] and
+//! rejects flags that do not apply to the kind of file opened.
+
+use std::path::Path;
+use std::time::Duration;
 
 use anyhow::bail;
 use formats::raw::{Endian, RawLayout};
 use volume_core::VoxelType;
+use volume_core::intersect::Intersector;
+use volume_core::ooc::OocOptions;
+use volume_core::tet::{BvhBuilder, BvhOptions, TetNormals};
+
+use crate::scene::{SceneKind, SceneOptions, detect_kind};
 
 /// Raw-layout flags (ignored for self-describing files).
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -71,6 +84,166 @@ impl OpenArgs {
                 origin: self.origin.unwrap_or([0.0; 3]),
             }),
         })
+    }
+}
+
+/// Flags for tetrahedral meshes (rejected for other files).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct MeshArgs {
+    /// Meshes: the point array to draw (default: the first one; `isoscope info` lists them).
+    #[arg(long, value_name = "NAME", help_heading = "Tetrahedral meshes")]
+    pub field: Option<String>,
+    /// Meshes: BVH builder, bih (spatial median, fast; default) or sah (binned SAH).
+    #[arg(long, value_name = "bih|sah", value_parser = parse_bvh, help_heading = "Tetrahedral meshes")]
+    pub bvh: Option<BvhBuilder>,
+    /// Meshes: most tets per BVH leaf, 1..=255 (default 12).
+    #[arg(long, value_name = "N", help_heading = "Tetrahedral meshes")]
+    pub leaf_size: Option<usize>,
+    /// Meshes: rays per packet SIDE: 16 = 16×16 = 256 rays (default), 8, 4, 2 = 2×2 = 4 rays,
+    /// 1 = one ray at a time.
+    #[arg(long, value_name = "SIDE", value_parser = parse_packet_side, help_heading = "Tetrahedral meshes")]
+    pub packet: Option<usize>,
+    /// Meshes: shading normals, faceted (the isopolygon's plane; default) or smooth
+    /// (interpolated vertex gradients).
+    #[arg(long, value_name = "faceted|smooth", value_parser = parse_normals, help_heading = "Tetrahedral meshes")]
+    pub normals: Option<TetNormals>,
+}
+
+impl MeshArgs {
+    /// True if any mesh flag was given.
+    pub fn any(&self) -> bool {
+        self.field.is_some()
+            || self.bvh.is_some()
+            || self.leaf_size.is_some()
+            || self.packet.is_some()
+            || self.normals.is_some()
+    }
+
+    /// The BVH options these flags describe (validated).
+    pub fn bvh_options(&self) -> anyhow::Result<BvhOptions> {
+        let d = BvhOptions::default();
+        let leaf_size = self.leaf_size.unwrap_or(d.leaf_size);
+        if !(1..=255).contains(&leaf_size) {
+            bail!("--leaf-size {leaf_size} must be between 1 and 255");
+        }
+        Ok(BvhOptions {
+            builder: self.bvh.unwrap_or(d.builder),
+            leaf_size,
+        })
+    }
+
+    /// Rays per packet (the square of `--packet`; default 256).
+    pub fn packet_rays(&self) -> usize {
+        let side = self.packet.unwrap_or(16);
+        side * side
+    }
+}
+
+/// Flags for out-of-core `.isot` files (rejected for other files).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct OocArgs {
+    /// .isot files: wait at most this long for the finest level the isovalues need before
+    /// rendering (default 120; 0 renders at once from the levels already loaded).
+    #[arg(long, value_name = "SECS", help_heading = "Out-of-core (.isot) files")]
+    pub level_timeout: Option<f64>,
+    /// .isot files: memory budget for resident treelets, MiB (default: the loader's, a
+    /// fraction of physical memory).
+    #[arg(long, value_name = "MIB", help_heading = "Out-of-core (.isot) files")]
+    pub budget_mb: Option<u64>,
+}
+
+impl OocArgs {
+    pub fn any(&self) -> bool {
+        self.level_timeout.is_some() || self.budget_mb.is_some()
+    }
+
+    /// `--level-timeout` (default 120 s), validated.
+    pub fn level_timeout(&self) -> anyhow::Result<Duration> {
+        let secs = self.level_timeout.unwrap_or(120.0);
+        if !(secs.is_finite() && secs >= 0.0) {
+            bail!("--level-timeout {secs} must be a number of seconds >= 0");
+        }
+        Ok(Duration::from_secs_f64(secs.min(1e9)))
+    }
+
+    pub fn ooc_options(&self) -> anyhow::Result<OocOptions> {
+        let mut o = OocOptions::default();
+        if let Some(mb) = self.budget_mb {
+            if mb == 0 {
+                bail!("--budget-mb must be at least 1");
+            }
+            o.budget_bytes = mb.saturating_mul(1 << 20);
+        }
+        Ok(o)
+    }
+}
+
+/// The scene options of `render`/`bench` for `file`. Flags for another kind of file are
+/// errors (a `--field` on a NRRD would otherwise be silently ignored).
+pub fn scene_options(
+    file: &Path,
+    open: &OpenArgs,
+    mesh: &MeshArgs,
+    ooc: &OocArgs,
+    step: Option<usize>,
+    intersector: Intersector,
+) -> anyhow::Result<SceneOptions> {
+    let kind = detect_kind(file);
+    let what = match kind {
+        SceneKind::Grid => "a volume",
+        SceneKind::Tet => "a tetrahedral mesh",
+        SceneKind::Ooc => "an out-of-core .isot file",
+    };
+    if kind != SceneKind::Tet && mesh.any() {
+        bail!(
+            "--field, --bvh, --leaf-size, --packet and --normals apply to tetrahedral meshes; {} is {what}",
+            file.display()
+        );
+    }
+    if kind != SceneKind::Ooc && ooc.any() {
+        bail!(
+            "--level-timeout and --budget-mb apply to .isot files; {} is {what}",
+            file.display()
+        );
+    }
+    if kind != SceneKind::Grid && open.any() {
+        bail!(
+            "the raw-file flags (--dims, --type, ...) apply to raw volumes; {} is {what}",
+            file.display()
+        );
+    }
+    Ok(SceneOptions {
+        open: open.open_options()?,
+        step: step.unwrap_or(0),
+        field: mesh.field.clone(),
+        intersector,
+        bvh: mesh.bvh_options()?,
+        normals: mesh.normals.unwrap_or_default(),
+        packet_rays: mesh.packet_rays(),
+        ooc: ooc.ooc_options()?,
+    })
+}
+
+fn parse_bvh(s: &str) -> Result<BvhBuilder, String> {
+    s.parse::<BvhBuilder>()
+}
+
+/// `--packet`: a side of 1, 2, 4, 8 or 16 rays (the renderer orders a tile's rays along a
+/// Morton curve, so these sides are square blocks).
+pub fn parse_packet_side(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n @ (1 | 2 | 4 | 8 | 16)) => Ok(n),
+        _ => Err(format!(
+            "`{s}`: the packet side must be 1, 2, 4, 8 or 16 (16 = 16x16 rays)"
+        )),
+    }
+}
+
+fn parse_normals(s: &str) -> Result<TetNormals, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "faceted" | "flat" => Ok(TetNormals::Faceted),
+        "smooth" => Ok(TetNormals::Smooth),
+        _ => Err(format!("`{s}`: expected faceted or smooth")),
     }
 }
 
@@ -164,5 +337,57 @@ mod tests {
         assert!(parse_point("1,2").is_err());
         assert!(parse_point("1,nan,2").is_err());
         assert!(parse_endian("middle").is_err());
+        assert_eq!(parse_packet_side("2"), Ok(2));
+        assert!(parse_packet_side("3").unwrap_err().contains("16x16"));
+        assert_eq!(parse_normals("Smooth"), Ok(TetNormals::Smooth));
+        assert!(parse_bvh("median").is_err());
+    }
+
+    #[test]
+    fn flags_for_another_kind_of_file_are_rejected() {
+        let mesh = MeshArgs {
+            field: Some("p".into()),
+            ..MeshArgs::default()
+        };
+        let e = scene_options(
+            Path::new("v.nrrd"),
+            &OpenArgs::default(),
+            &mesh,
+            &OocArgs::default(),
+            None,
+            Intersector::Exact,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("tetrahedral meshes"), "{e}");
+        let ooc = OocArgs {
+            level_timeout: Some(1.0),
+            ..OocArgs::default()
+        };
+        let e = scene_options(
+            Path::new("m.vtu"),
+            &OpenArgs::default(),
+            &MeshArgs::default(),
+            &ooc,
+            None,
+            Intersector::Exact,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains(".isot"), "{e}");
+        let o = scene_options(
+            Path::new("m.vtu"),
+            &OpenArgs::default(),
+            &MeshArgs {
+                packet: Some(2),
+                bvh: Some(BvhBuilder::Sah),
+                ..MeshArgs::default()
+            },
+            &OocArgs::default(),
+            Some(3),
+            Intersector::Exact,
+        )
+        .unwrap();
+        assert_eq!(o.packet_rays, 4);
+        assert_eq!(o.bvh.builder, BvhBuilder::Sah);
+        assert_eq!(o.step, 3);
     }
 }

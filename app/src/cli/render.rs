@@ -1,12 +1,16 @@
 //! `isoscope render FILE [--iso V[:#RRGGBB[:OPACITY]]]... [--camera cam.json | --orbit AZ,EL]
 //! [--size WxH] [--intersector NAME] [--shadows] [--light-dir x,y,z] [--clip-box ...]...
 //! [--clip-plane ...]... [--layers N] [--background #RRGGBB] [--step N] -o out.png
-//! [--depth-out depth.npy]`
+//! [--depth-out depth.npy]`, plus for tetrahedral meshes `[--field NAME] [--bvh bih|sah]
+//! [--leaf-size N] [--packet SIDE] [--normals faceted|smooth]` and for `.isot` files
+//! `[--level-timeout SECS] [--budget-mb MIB]`.
 //!
-//! Opens a volume (`formats::open`), builds the implicit min/max kd-tree
-//! ([`volume_core::grid_scene::AnyGridScene`]), renders one frame with
-//! [`volume_core::render::render`] and writes a PNG and optionally the first-hit depth as
-//! `.npy` (float32, shape (H, W), row 0 at the top, `inf` on miss; see docs/cli.md).
+//! Opens any supported file as a [`crate::scene::AnyScene`] (kd-tree for volumes, BVH for
+//! meshes, treelets for `.isot`), renders one frame with [`volume_core::render::render`]
+//! (the one shading path for every kind) and writes a PNG and optionally the first-hit depth
+//! as `.npy` (float32, shape (H, W), row 0 at the top, `inf` on miss; see docs/cli.md).
+//! An `.isot` render waits for the finest level its isovalues need (at most
+//! `--level-timeout`) and reports the level it rendered.
 //!
 //! The parsers and the camera/volume helpers here are shared with `isoscope bench`.
 
@@ -16,16 +20,17 @@ use std::sync::atomic::AtomicBool;
 use anyhow::{Context as _, bail};
 use glam::Vec3;
 use volume_core::RectilinearVolume;
-use volume_core::grid_scene::{AnyGridScene, SceneVisitor};
+use volume_core::grid_scene::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::render::{
-    Camera, ClipRegion, Frame, IsoScene, Keep, Light, LightKind, RenderSettings, Surface, render,
+    Camera, ClipRegion, Frame, Keep, Light, LightKind, RenderSettings, Surface,
 };
 
 use super::npy;
-use super::open_args::OpenArgs;
+use super::open_args::{MeshArgs, OocArgs, OpenArgs, scene_options};
 use crate::progress::Progress;
+use crate::scene::{AnyScene, RenderVisitor, open_scene};
 
 /// Colours given to `--iso` values without one, in order.
 pub const PALETTE: [[f32; 3]; 6] = [
@@ -93,8 +98,9 @@ pub fn load_camera(path: &Path) -> anyhow::Result<Camera> {
 /// Arguments of `isoscope render`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), or a
-    /// time series pattern such as vol_%03d.nrrd.
+    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), a
+    /// time series pattern such as vol_%03d.nrrd; a tetrahedral mesh (.vtk, .vtu, .msh,
+    /// .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an out-of-core .isot file.
     pub file: PathBuf,
     /// Isosurface: value, optional colour and opacity, e.g. 0.5, 500:#e0d0b0, -300:#ff8060:0.4.
     /// Repeat for several surfaces. Default: one surface at the middle of the value range.
@@ -126,7 +132,7 @@ pub struct Args {
     /// Background colour.
     #[arg(long, value_name = "#RRGGBB", value_parser = parse_color)]
     pub background: Option<[f32; 3]>,
-    /// Time step of a series (default 0).
+    /// Time step of a series (volumes or meshes; default 0).
     #[arg(long, value_name = "N")]
     pub step: Option<usize>,
     /// Output PNG.
@@ -136,11 +142,16 @@ pub struct Args {
     /// top, inf where the ray hits nothing.
     #[arg(long, value_name = "depth.npy")]
     pub depth_out: Option<PathBuf>,
-    /// Print traversal statistics (nodes, leaves and intersections per ray).
+    /// Print traversal statistics (nodes, leaves and intersections per ray; ray-box and
+    /// isopolygon tests for meshes).
     #[arg(long)]
     pub stats: bool,
     #[command(flatten)]
     pub open: OpenArgs,
+    #[command(flatten)]
+    pub mesh: MeshArgs,
+    #[command(flatten)]
+    pub ooc: OocArgs,
 }
 
 /// Opens `file` and returns step `step` (0 when `None`) of it.
@@ -210,24 +221,33 @@ pub fn surfaces_from(
         .collect())
 }
 
+/// Surfaces from `--iso` arguments, or one at the middle of the scene's value range.
+pub fn surfaces_for(specs: &[IsoSpec], scene: &AnyScene) -> anyhow::Result<Vec<Surface>> {
+    if specs.is_empty() {
+        let Some(iso) = scene.default_isovalue() else {
+            bail!(
+                "{} has no finite values, so there is no isosurface to show",
+                scene.path().display()
+            );
+        };
+        return Ok(vec![Surface::new(iso, PALETTE[0])]);
+    }
+    Ok(specs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Surface {
+            isovalue: s.value,
+            color: s.color.unwrap_or(PALETTE[i % PALETTE.len()]),
+            opacity: s.opacity,
+            visible: true,
+        })
+        .collect())
+}
+
 /// A key light for `--shadows` without `--light-dir`: above, left and behind the camera.
 pub fn default_key_light(camera: &Camera) -> Vec3 {
     let (right, up, forward) = camera.basis();
     (-forward + up * 0.8 - right * 0.5).normalize()
-}
-
-/// Renders any voxel type with fully monomorphized traversal.
-struct RenderVisitor<'a> {
-    camera: &'a Camera,
-    settings: &'a RenderSettings,
-    cancel: &'a AtomicBool,
-}
-
-impl SceneVisitor for RenderVisitor<'_> {
-    type Output = Option<Frame>;
-    fn visit<S: IsoScene>(self, scene: &S) -> Option<Frame> {
-        render(scene, self.camera, self.settings, self.cancel)
-    }
 }
 
 /// Renders the kd-tree scene (`dda == false`) or its brute-force DDA twin (`dda == true`).
@@ -313,24 +333,108 @@ pub fn settings_from(
     Ok(settings)
 }
 
+/// A frame and, for `.isot` files, the level it reached.
+pub struct Rendered {
+    pub frame: Frame,
+    /// `(level rendered, level count)` for out-of-core scenes (0 = coarsest).
+    pub ooc_level: Option<(usize, usize)>,
+}
+
+/// Renders one frame of `scene`. `.isot` scenes first wait (at most `level_timeout`) for
+/// the finest level the isovalues need; a damaged treelet is an error, never a picture.
+pub fn render_scene(
+    scene: &AnyScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    level_timeout: std::time::Duration,
+) -> anyhow::Result<Rendered> {
+    let cancel = AtomicBool::new(false);
+    if let AnyScene::Ooc(o) = scene {
+        o.set_isovalues(&settings.active_isovalues().0);
+        let finished = {
+            let _spinner = Progress::spinner("loading treelets");
+            o.wait_until_finished(level_timeout)
+        };
+        let status = o.status();
+        if let Some(e) = &status.error {
+            bail!("{}: {e}", scene.path().display());
+        }
+        if !finished {
+            eprintln!(
+                "warning: --level-timeout {:.1} s passed with {} of {} levels loaded; rendering the levels loaded so far",
+                level_timeout.as_secs_f64(),
+                status.loaded_levels,
+                status.level_count
+            );
+        } else if status.budget_limited {
+            eprintln!(
+                "warning: the memory budget stopped loading at {} of {} levels (raise --budget-mb)",
+                status.loaded_levels, status.level_count
+            );
+        }
+        let (frame, level) = {
+            let _spinner = Progress::spinner("rendering");
+            o.render_with_level(camera, settings, &cancel)
+                .context("rendering was cancelled")?
+        };
+        return Ok(Rendered {
+            frame,
+            ooc_level: Some((level, status.level_count)),
+        });
+    }
+    let frame = {
+        let _spinner = Progress::spinner("rendering");
+        scene
+            .render(camera, settings, &cancel)
+            .context("rendering was cancelled")?
+    };
+    Ok(Rendered {
+        frame,
+        ooc_level: None,
+    })
+}
+
+/// Opens the file of `render`/`bench` with a spinner and prints reader warnings (skipped
+/// mesh cells).
+pub fn open_with_flags(
+    file: &Path,
+    open: &OpenArgs,
+    mesh: &MeshArgs,
+    ooc: &OocArgs,
+    step: Option<usize>,
+    intersector: Intersector,
+) -> anyhow::Result<AnyScene> {
+    let options = scene_options(file, open, mesh, ooc, step, intersector)?;
+    let scene = {
+        let _spinner = Progress::spinner(format!("opening {}", file.display()));
+        open_scene(file, &options)?
+    };
+    if let AnyScene::Tet(t) = &scene
+        && let Some(w) = t.loaded().skipped_warning()
+    {
+        eprintln!("warning: {}: {w}", file.display());
+    }
+    Ok(scene)
+}
+
 pub fn run(args: &Args) -> anyhow::Result<()> {
     refuse_overwriting_input(&args.file, &args.output)?;
     if let Some(d) = &args.depth_out {
         refuse_overwriting_input(&args.file, d)?;
     }
-    let volume = load_volume(&args.file, &args.open, args.step)?;
-    let surfaces = surfaces_from(&args.iso, &volume)?;
-    let scene = {
-        let _spinner = Progress::spinner("building the kd-tree");
-        AnyGridScene::new(&volume, args.intersector)
-    };
+    let level_timeout = args.ooc.level_timeout()?;
+    let scene = open_with_flags(
+        &args.file,
+        &args.open,
+        &args.mesh,
+        &args.ooc,
+        args.step,
+        args.intersector,
+    )?;
+    let surfaces = surfaces_for(&args.iso, &scene)?;
     let camera = args.view.camera(&scene.world_bounds())?;
     let settings = settings_from(args, &camera, surfaces)?;
-    let frame = {
-        let _spinner = Progress::spinner("rendering");
-        render_grid(&scene, false, &camera, &settings, &AtomicBool::new(false))
-            .context("rendering was cancelled")?
-    };
+    let Rendered { frame, ooc_level } = render_scene(&scene, &camera, &settings, level_timeout)?;
     save_png(&frame, &args.output)?;
     if let Some(path) = &args.depth_out {
         npy::save_f32_2d(
@@ -341,15 +445,43 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         )?;
     }
     let secs = frame.elapsed.as_secs_f64();
+    let structure = match &scene {
+        AnyScene::Grid(g) => format!(
+            "{}; kd-tree built in {:.1} ms, {:.2}x data",
+            args.intersector,
+            scene.build_time().as_secs_f64() * 1e3,
+            g.scene().memory_ratio()
+        ),
+        AnyScene::Tet(t) => format!(
+            "{} tets, field \"{}\"; {:?} BVH built in {:.1} ms, {}x{} packets",
+            t.scene().num_tets(),
+            t.field(),
+            t.scene().bvh().options().builder,
+            t.build_time().as_secs_f64() * 1e3,
+            packet_side(t.scene().packet_size()),
+            packet_side(t.scene().packet_size()),
+        ),
+        AnyScene::Ooc(o) => {
+            let (level, count) = ooc_level.unwrap_or((0, 0));
+            format!(
+                "{}; out-of-core level {level} of 0..{} ({}), {:.1} MiB resident",
+                args.intersector,
+                count.saturating_sub(1),
+                if level + 1 == count {
+                    "finest"
+                } else {
+                    "coarser than the finest"
+                },
+                o.status().resident_bytes as f64 / f64::from(1u32 << 20)
+            )
+        }
+    };
     eprintln!(
-        "{}x{} {} in {:.1} ms ({:.2} Mrays/s primary; kd-tree built in {:.1} ms, {:.2}x data) -> {}",
+        "{}x{} in {:.1} ms ({:.2} Mrays/s primary; {structure}) -> {}",
         frame.width,
         frame.height,
-        args.intersector,
         secs * 1e3,
         frame.rays.primary as f64 / secs.max(1e-9) / 1e6,
-        scene.build_time().as_secs_f64() * 1e3,
-        scene.memory_ratio(),
         args.output.display()
     );
     if args.stats {
@@ -365,8 +497,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             c.leaves_visited as f64 / rays,
             c.intersection_tests as f64 / rays
         );
+        if scene.as_tet().is_some() {
+            eprintln!(
+                "per frame: {} ray-box tests, {} isopolygon tests, {} isopolygon extractions",
+                c.box_tests, c.intersection_tests, c.polygon_extractions
+            );
+        }
     }
     Ok(())
+}
+
+/// Side of a square packet of `rays` rays (`16` for 256).
+pub fn packet_side(rays: usize) -> usize {
+    (1..=16).find(|s| s * s >= rays).unwrap_or(16)
 }
 
 // ---------------------------------------------------------------------------------------

@@ -1,0 +1,193 @@
+//! Out-of-core `.isot` files through the `isoscope` binary: `preprocess`, then `render` at the
+//! finest level equals the in-core render of the same volume pixel for pixel; `info` and
+//! `bench --json` report levels, time to first image and resident memory; truncated and
+//! corrupted files are errors, never pictures.
+
+mod common;
+use common::{fails, isoscope, ok};
+
+use std::path::{Path, PathBuf};
+
+use volume_core::ooc::TreeletStorage as _;
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A 41³ f32 sphere distance field and its `.isot` (treelet height 3: several levels).
+fn volume_and_isot(dir: &Path) -> (PathBuf, PathBuf) {
+    let vol = dir.join("sphere.nrrd");
+    ok(&["generate", "sphere", "--size", "41", "-o", s(&vol)]);
+    let isot = dir.join("sphere.isot");
+    ok(&[
+        "preprocess",
+        s(&vol),
+        "-o",
+        s(&isot),
+        "--treelet-height",
+        "3",
+    ]);
+    (vol, isot)
+}
+
+fn render(file: &Path, out: &Path, extra: &[&str]) -> String {
+    let mut args = vec![
+        "render",
+        s(file),
+        "--iso",
+        "0.6",
+        "--iso",
+        "0.3:#4080ff:0.5",
+        "--orbit",
+        "35,25",
+        "--size",
+        "64x48",
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    let o = isoscope(&args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{args:?}: {err}");
+    err
+}
+
+#[test]
+fn finest_level_render_equals_the_in_core_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let (vol, isot) = volume_and_isot(dir.path());
+    let levels = formats::treelet::IsotFile::open(&isot)
+        .unwrap()
+        .meta()
+        .layout
+        .level_count();
+    assert!(levels >= 2, "{levels}");
+    let a_png = dir.path().join("incore.png");
+    let b_png = dir.path().join("ooc.png");
+    let a_npy = dir.path().join("incore.npy");
+    let b_npy = dir.path().join("ooc.npy");
+    render(&vol, &a_png, &["--depth-out", s(&a_npy)]);
+    let log = render(&isot, &b_png, &["--depth-out", s(&b_npy)]);
+    let finest = levels - 1;
+    assert!(
+        log.contains(&format!("level {finest} of 0..{finest} (finest)")),
+        "{log}"
+    );
+    let read = |p: &Path| isoscope::cli::npy::read_f32_2d(std::fs::File::open(p).unwrap()).unwrap();
+    let (shape_a, depth_a) = read(&a_npy);
+    let (shape_b, depth_b) = read(&b_npy);
+    assert_eq!(shape_a, shape_b);
+    let hits = depth_a.iter().filter(|d| d.is_finite()).count();
+    assert!(hits > 500, "{hits}");
+    for (k, (a, b)) in depth_a.iter().zip(&depth_b).enumerate() {
+        assert!(
+            a.to_bits() == b.to_bits(),
+            "pixel {k}: in-core {a}, out-of-core {b}"
+        );
+    }
+    let a = image::open(&a_png).unwrap().to_rgba8();
+    let b = image::open(&b_png).unwrap().to_rgba8();
+    assert_eq!(
+        a.as_raw(),
+        b.as_raw(),
+        "same shading, transparency included"
+    );
+}
+
+#[test]
+fn info_and_bench_report_levels_and_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, isot) = volume_and_isot(dir.path());
+    let v: serde_json::Value = serde_json::from_str(&ok(&["info", s(&isot), "--json"])).unwrap();
+    assert_eq!(v["kind"], "isot");
+    assert_eq!(v["dims"], serde_json::json!([41, 41, 41]));
+    assert_eq!(v["voxel_type"], "f32");
+    assert_eq!(v["treelet_height"], 3);
+    let levels = v["levels"].as_u64().unwrap();
+    assert!(levels >= 2);
+    assert_eq!(
+        v["file_bytes"].as_u64().unwrap(),
+        std::fs::metadata(&isot).unwrap().len()
+    );
+    let [lo, hi] = [0, 1].map(|i| v["value_range"][i].as_f64().unwrap());
+    assert!(lo >= 0.0 && lo < 0.1 && hi > 1.6, "{lo} {hi}");
+
+    let json = ok(&[
+        "bench",
+        s(&isot),
+        "--iso",
+        "0.6",
+        "--size",
+        "48x48",
+        "--frames",
+        "2",
+        "--json",
+    ]);
+    let b: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    assert_eq!(b["kind"], "isot");
+    assert_eq!(b["dims"], serde_json::json!([41, 41, 41]));
+    let o = &b["ooc"];
+    assert_eq!(o["level_count"].as_u64().unwrap(), levels);
+    assert_eq!(o["loaded_levels"].as_u64().unwrap(), levels);
+    assert!(o["first_image_seconds"].as_f64().unwrap() >= o["open_seconds"].as_f64().unwrap());
+    assert!(o["finest_level_seconds"].as_f64().unwrap() > 0.0);
+    assert!(o["resident_bytes"].as_u64().unwrap() > 0);
+    let per_level = o["levels"].as_array().unwrap();
+    let last = per_level.last().unwrap();
+    assert_eq!(last["level"].as_u64().unwrap(), levels - 1);
+    // Coarser levels hold fewer resident bytes than the finest.
+    for l in &per_level[..per_level.len() - 1] {
+        assert!(l["level"].as_u64().unwrap() < levels - 1);
+        assert!(l["resident_bytes"].as_u64().unwrap() < last["resident_bytes"].as_u64().unwrap());
+    }
+    assert!(b["rays_per_second"].as_f64().unwrap() > 0.0);
+    assert_eq!(b["rays_per_second"], b["configs"][0]["rays_per_second"]);
+}
+
+#[test]
+fn truncated_and_corrupted_files_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, isot) = volume_and_isot(dir.path());
+    let bytes = std::fs::read(&isot).unwrap();
+    let out = dir.path().join("o.png");
+
+    let cut = dir.path().join("cut.isot");
+    std::fs::write(&cut, &bytes[..bytes.len() - 100]).unwrap();
+    let e = fails(&["render", s(&cut), "-o", s(&out)]);
+    assert!(e.contains("cut.isot"), "{e}");
+    let e = fails(&["info", s(&cut)]);
+    assert!(e.contains("cut.isot"), "{e}");
+
+    // A flipped byte in the header.
+    let mut head = bytes.clone();
+    head[40] ^= 0x10;
+    let p = dir.path().join("head.isot");
+    std::fs::write(&p, &head).unwrap();
+    let e = fails(&["render", s(&p), "-o", s(&out)]);
+    assert!(e.contains("head.isot"), "{e}");
+
+    // A flipped byte in every data page below the top level: the file opens (the top
+    // treelet is intact) and the loader's checksum error stops the render.
+    let f = formats::treelet::IsotFile::open(&isot).unwrap();
+    let pages: u64 = f.plans().iter().map(|p| p.page_count).sum();
+    let page = formats::treelet::PAGE;
+    let data_offset = bytes.len() as u64 - pages * (page + 4);
+    let mut bad = bytes.clone();
+    for p in &f.plans()[1..] {
+        for k in p.first_page..p.first_page + p.page_count {
+            bad[(data_offset + k * page + 100) as usize] ^= 0x01;
+        }
+    }
+    drop(f);
+    let p = dir.path().join("pages.isot");
+    std::fs::write(&p, &bad).unwrap();
+    let e = fails(&["render", s(&p), "--iso", "0.6", "-o", s(&out)]);
+    assert!(e.contains("pages.isot") && e.contains("checksum"), "{e}");
+    assert!(!out.exists());
+
+    // Not an .isot at all.
+    let p = dir.path().join("fake.isot");
+    std::fs::write(&p, b"hello").unwrap();
+    let e = fails(&["render", s(&p), "-o", s(&out)]);
+    assert!(e.contains("fake.isot"), "{e}");
+}
