@@ -143,45 +143,42 @@ impl Frustum {
     /// `t_max`, `-inf` in padding lanes), computed 8 lanes at a time. Same result as
     /// [`Frustum::new`] on the rays.
     fn from_blocks(blocks: &[RayBlock], t1: &[f32x8]) -> Self {
-        let mut omin = blocks[0].o;
-        let mut omax = blocks[0].o;
-        let mut imin = blocks[0].inv;
-        let mut imax = blocks[0].inv;
-        let mut t0 = blocks[0].t0;
-        let mut tm = t1[0];
+        let b0 = &blocks[0];
+        // Rows: origin xyz, reciprocal xyz, range end, unused.
+        let mut lo = [b0.o[0], b0.o[1], b0.o[2], b0.inv[0], b0.inv[1], b0.inv[2], b0.t0, b0.t0];
+        let mut hi = [b0.o[0], b0.o[1], b0.o[2], b0.inv[0], b0.inv[1], b0.inv[2], t1[0], t1[0]];
         let mut bad_o = 0u32;
         let mut bad_i = [0u32; 3];
         for (b, t) in blocks.iter().zip(t1) {
             for a in 0..3 {
-                omin[a] = omin[a].min(b.o[a]);
-                omax[a] = omax[a].max(b.o[a]);
-                imin[a] = imin[a].min(b.inv[a]);
-                imax[a] = imax[a].max(b.inv[a]);
+                lo[a] = lo[a].min(b.o[a]);
+                hi[a] = hi[a].max(b.o[a]);
+                lo[3 + a] = lo[3 + a].min(b.inv[a]);
+                hi[3 + a] = hi[3 + a].max(b.inv[a]);
                 bad_o |= !b.o[a].is_finite().to_bitmask();
                 bad_i[a] |= !b.inv[a].is_finite().to_bitmask();
             }
-            t0 = t0.min(b.t0);
-            tm = tm.max(*t);
+            lo[6] = lo[6].min(b.t0);
+            hi[6] = hi[6].max(*t);
         }
-        // Branch-free folds that skip NaN lanes (as `f32::min`/`max` do).
-        let hmin = |v: f32x8| {
-            v.to_array()
-                .into_iter()
-                .fold(f32::INFINITY, |m, x| if x < m { x } else { m })
-        };
-        let hmax = |v: f32x8| {
-            v.to_array()
-                .into_iter()
-                .fold(f32::NEG_INFINITY, |m, x| if x > m { x } else { m })
-        };
+        // Horizontal min/max of all rows at once: transpose, then reduce the 8 columns.
+        // `f32x8::min`/`max` skip NaN lanes, as `f32::min`/`max` do.
+        let lo = f32x8::transpose(lo)
+            .into_iter()
+            .fold(f32x8::INFINITY, f32x8::min)
+            .to_array();
+        let hi = f32x8::transpose(hi)
+            .into_iter()
+            .fold(f32x8::NEG_INFINITY, f32x8::max)
+            .to_array();
         let mut f = Frustum {
-            omin: Vec3::from_array(omin.map(hmin)),
-            omax: Vec3::from_array(omax.map(hmax)),
-            imin: Vec3::from_array(imin.map(hmin)),
-            imax: Vec3::from_array(imax.map(hmax)),
+            omin: Vec3::new(lo[0], lo[1], lo[2]),
+            omax: Vec3::new(hi[0], hi[1], hi[2]),
+            imin: Vec3::new(lo[3], lo[4], lo[5]),
+            imax: Vec3::new(hi[3], hi[4], hi[5]),
             axis: [true; 3],
-            t0: hmin(t0),
-            t1: hmax(tm),
+            t0: lo[6],
+            t1: hi[6],
         };
         for a in 0..3 {
             // Zero direction components have infinite reciprocals; mixed signs would make
