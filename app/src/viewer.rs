@@ -2,16 +2,19 @@
 //! jobs and the side panels.
 //!
 //! Frame loop (`ViewerApp::ui`):
-//! 1. poll finished jobs (load, scene build, render, prefetch, dialogs, screenshot);
+//! 1. poll finished jobs (load + build, step switch, prefetch, render, dialogs, screenshot)
+//!    and the out-of-core loader's progress;
 //! 2. apply queued [`Command`]s;
 //! 3. draw the menu, side panel, time bar, status bar and viewport (panels edit the state and
 //!    queue commands);
 //! 4. derive the render request from the state; if it differs from what is shown or running,
-//!    start a render job (cancelling a running full-resolution one); advance playback.
+//!    start a render job (cancelling a running full-resolution one); switch the time step
+//!    (a refit job), prefetch the next steps, advance playback.
 //!
-//! The UI thread never waits: loading, building and rendering all run in [`Job`]s. Render
-//! results carry a generation number; results older than the frame on screen, or from data
-//! that has since been replaced, are discarded.
+//! The UI thread never waits: loading, building, refitting and rendering all run in
+//! [`Job`]s, and the out-of-core status is read without blocking. Render results carry a
+//! generation number; results older than the frame on screen, or from data that has since
+//! been replaced, are discarded.
 
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -21,10 +24,12 @@ use std::time::{Duration, Instant};
 use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Vec2};
 
 use crate::ui::backend::{
-    Backend, CoreBackend, LoadedData, PreparedScene, RenderRequest, RenderedImage,
+    Backend, CoreBackend, LoadedData, LodStatus, OpenChoices, RenderRequest, RenderedImage,
+    StepSwitch,
 };
 use crate::ui::camera::{CameraPose, box_edges, clip_box_world};
-use crate::ui::jobs::{Job, take_finished};
+use crate::ui::files::{FileGroup, group_files};
+use crate::ui::jobs::{Job, JobPoll, take_finished};
 use crate::ui::panels::{self, Command, Prefs};
 use crate::ui::state::{CameraState, RawLayoutState, ViewerState};
 
@@ -32,24 +37,14 @@ use crate::ui::state::{CameraState, RawLayoutState, ViewerState};
 pub const INTERACTIVE_SCALE: u32 = 4;
 /// How long after the last input the view counts as still moving.
 const SETTLE: Duration = Duration::from_millis(150);
-/// Scenes kept for time stepping (current + prefetched).
-const SCENE_CACHE: usize = 4;
-/// Steps built ahead of the current one.
+/// Steps loaded ahead of the current one.
 const PREFETCH_AHEAD: usize = 2;
 /// Largest render side, in pixels.
 const MAX_RENDER_SIDE: u32 = 4096;
+/// How often the out-of-core loader is polled while it loads.
+const LOD_POLL: Duration = Duration::from_millis(40);
 
 const PREFS_KEY: &str = "isoscope.prefs";
-
-/// Identifies a built scene: data epoch and time step. (The intersector is switched inside
-/// a built scene without a rebuild, so it is not part of the key.)
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct SceneKey {
-    epoch: u64,
-    step: usize,
-}
-
-type SceneResult = Result<Arc<dyn PreparedScene>, String>;
 
 struct RenderJob {
     generation: u64,
@@ -66,6 +61,8 @@ pub struct ShownFrame {
     pub elapsed: Duration,
     pub rays: u64,
     pub size: [u32; 2],
+    /// Out-of-core: the finest level the frame reached.
+    pub lod_level: Option<usize>,
 }
 
 /// A message for the user (errors from bad files, saved screenshots).
@@ -82,8 +79,14 @@ pub struct ViewerStats {
     pub renders_started: u64,
     pub renders_shown: u64,
     pub renders_discarded: u64,
+    /// Acceleration structures built from scratch (one per opened dataset).
     pub scenes_built: u64,
     pub datasets_loaded: u64,
+    /// Time-step switches done by refitting, and by rebuilding.
+    pub steps_refit: u64,
+    pub steps_rebuilt: u64,
+    /// Steps loaded ahead of time.
+    pub steps_prefetched: u64,
 }
 
 /// The raw-file dialog while it is open.
@@ -102,13 +105,17 @@ pub struct ViewerApp {
 
     // Caches: rebuilt from the state and the files, never saved.
     data: Option<LoadedData>,
-    /// Bumped whenever `data` is replaced; scenes and frames of older epochs are stale.
+    /// Bumped whenever `data` is replaced; jobs and frames of older epochs are stale.
     epoch: u64,
     active_file: usize,
     load_job: Option<Job<Result<LoadedData, String>>>,
-    scenes: VecDeque<(SceneKey, Arc<dyn PreparedScene>)>,
-    scene_job: Option<(SceneKey, Job<SceneResult>)>,
-    prefetch_job: Option<(SceneKey, Job<SceneResult>)>,
+    /// The time step the scene holds (a step switch is a refit job).
+    scene_step: usize,
+    step_job: Option<(usize, Job<Result<StepSwitch, String>>)>,
+    prefetch_job: Option<(usize, Job<Result<(), String>>)>,
+    /// Steps of this epoch whose data is loaded ahead.
+    prefetched: Vec<usize>,
+    lod: Option<LodStatus>,
     render_job: Option<RenderJob>,
     pending_render: Option<RenderRequest>,
     generation: u64,
@@ -154,9 +161,11 @@ impl ViewerApp {
             epoch: 0,
             active_file: 0,
             load_job: None,
-            scenes: VecDeque::new(),
-            scene_job: None,
+            scene_step: 0,
+            step_job: None,
             prefetch_job: None,
+            prefetched: Vec::new(),
+            lod: None,
             render_job: None,
             pending_render: None,
             generation: 0,
@@ -197,10 +206,25 @@ impl ViewerApp {
         &self.notifications
     }
 
-    /// True while any background job runs.
+    /// Out-of-core loading progress of the shown data (polled every frame).
+    pub fn lod_status(&self) -> Option<&LodStatus> {
+        self.lod.as_ref()
+    }
+
+    /// The time step the scene holds (it lags `state.time.step` while a refit runs).
+    pub fn scene_step(&self) -> usize {
+        self.scene_step
+    }
+
+    /// Steps whose data has been loaded ahead of time.
+    pub fn prefetched_steps(&self) -> &[usize] {
+        &self.prefetched
+    }
+
+    /// True while any background job runs (prefetching excepted).
     pub fn is_busy(&self) -> bool {
         self.load_job.is_some()
-            || self.scene_job.is_some()
+            || self.step_job.is_some()
             || self.render_job.is_some()
             || self.screenshot_job.is_some()
     }
@@ -227,6 +251,13 @@ impl ViewerApp {
         move || r()
     }
 
+    fn open_choices(&self) -> OpenChoices {
+        OpenChoices {
+            intersector: self.state.render.intersector,
+            smooth_normals: self.state.render.smooth_normals,
+        }
+    }
+
     // ---- jobs -------------------------------------------------------------------------
 
     fn start_load(&mut self, path: Option<PathBuf>, raw: Option<RawLayoutState>) {
@@ -235,62 +266,15 @@ impl ViewerApp {
             || "generating the default sample".to_string(),
             |p| format!("loading {}", p.display()),
         );
-        self.load_job = Some(Job::spawn(label, self.repaint_fn(), move |control| {
-            if let Some(p) = path {
-                let kind = backend.open(&p, raw.as_ref(), control)?;
-                let name = p.file_name().map_or_else(
-                    || p.display().to_string(),
-                    |n| n.to_string_lossy().into_owned(),
-                );
-                LoadedData::new(name, Some(p), kind)
-            } else {
-                let (name, kind) = backend.default_dataset(control)?;
-                LoadedData::new(name, None, kind)
-            }
-        }));
-    }
-
-    fn spawn_scene_job(&self, key: SceneKey) -> Option<Job<SceneResult>> {
-        let data = self.data.as_ref()?;
-        let kind = data.kind.clone();
-        let backend = Arc::clone(&self.backend);
-        let intersector = self.state.render.intersector;
-        Some(Job::spawn(
-            format!("building the scene for step {}", key.step),
+        let choices = self.open_choices();
+        self.load_job = Some(Job::spawn(
+            label,
             self.repaint_fn(),
-            move |control| {
-                let volume = kind.volume_at(key.step)?;
-                control.set_progress(0.2);
-                if control.is_cancelled() {
-                    return Err("cancelled".into());
-                }
-                backend.prepare(&volume, intersector, control)
+            move |control| match path {
+                Some(p) => backend.open(&p, raw.as_ref(), choices, control),
+                None => backend.default_dataset(choices, control),
             },
-        ))
-    }
-
-    fn wanted_scene_key(&self) -> Option<SceneKey> {
-        self.data.as_ref().map(|_| SceneKey {
-            epoch: self.epoch,
-            step: self.state.time.step,
-        })
-    }
-
-    fn cached_scene(&self, key: SceneKey) -> Option<Arc<dyn PreparedScene>> {
-        self.scenes
-            .iter()
-            .find(|(k, _)| *k == key)
-            .map(|(_, s)| Arc::clone(s))
-    }
-
-    fn cache_scene(&mut self, key: SceneKey, scene: Arc<dyn PreparedScene>) {
-        self.scenes
-            .retain(|(k, _)| *k != key && k.epoch == self.epoch);
-        if self.scenes.len() >= SCENE_CACHE {
-            self.scenes.pop_front();
-        }
-        self.scenes.push_back((key, scene));
-        self.stats.scenes_built += 1;
+        ));
     }
 
     fn poll_jobs(&mut self, ctx: &egui::Context) {
@@ -300,38 +284,49 @@ impl ViewerApp {
                 Err(e) => self.notify(e, true),
             }
         }
-        if let Some((key, _)) = &self.scene_job {
-            let key = *key;
-            let mut slot = self.scene_job.take().map(|(_, j)| j);
+        if let Some((step, _)) = &self.step_job {
+            let step = *step;
+            let mut slot = self.step_job.take().map(|(_, j)| j);
             match take_finished(&mut slot) {
-                None => self.scene_job = slot.map(|j| (key, j)),
-                Some(Ok(Ok(scene))) if key.epoch == self.epoch => self.cache_scene(key, scene),
-                Some(Ok(Ok(_))) => {}
-                Some(Ok(Err(e)) | Err(e)) => {
-                    if key.epoch == self.epoch {
-                        self.notify(format!("{}: {e}", self.data_name()), true);
+                None => self.step_job = slot.map(|j| (step, j)),
+                Some(Ok(Ok(switch))) => {
+                    self.scene_step = step;
+                    match switch {
+                        StepSwitch::Refit => self.stats.steps_refit += 1,
+                        StepSwitch::Rebuilt => self.stats.steps_rebuilt += 1,
+                        StepSwitch::Unchanged => {}
                     }
+                }
+                Some(Ok(Err(e)) | Err(e)) => {
+                    // Stay on the step the scene holds; stop playback so it does not retry.
+                    self.notify(format!("{}: time step {step}: {e}", self.data_name()), true);
+                    self.state.time.step = self.scene_step;
+                    self.state.time.playing = false;
                 }
             }
         }
-        if let Some((key, _)) = &self.prefetch_job {
-            let key = *key;
+        if let Some((step, _)) = &self.prefetch_job {
+            let step = *step;
             let mut slot = self.prefetch_job.take().map(|(_, j)| j);
             match take_finished(&mut slot) {
-                None => self.prefetch_job = slot.map(|j| (key, j)),
-                Some(Ok(Ok(scene))) if key.epoch == self.epoch => self.cache_scene(key, scene),
-                // A failed prefetch is retried (and reported) when the step is shown.
-                Some(_) => {}
+                None => self.prefetch_job = slot.map(|j| (step, j)),
+                Some(Ok(Ok(()))) => {
+                    self.prefetched.push(step);
+                    self.stats.steps_prefetched += 1;
+                }
+                // A failed prefetch is reported when the step is shown; mark it done so
+                // playback does not wait for it.
+                Some(_) => self.prefetched.push(step),
             }
         }
         if let Some(rj) = &self.render_job {
             match rj.job.poll() {
-                crate::ui::jobs::JobPoll::Pending => {}
-                crate::ui::jobs::JobPoll::Done(image) => {
+                JobPoll::Pending => {}
+                JobPoll::Done(image) => {
                     let rj = self.render_job.take().expect("checked above");
                     self.finish_render(ctx, rj, image);
                 }
-                crate::ui::jobs::JobPoll::Failed => {
+                JobPoll::Failed => {
                     self.render_job = None;
                     self.stats.renders_discarded += 1;
                     self.notify("rendering failed (the render thread panicked)", true);
@@ -347,6 +342,13 @@ impl ViewerApp {
                 Err(e) => self.notify(format!("screenshot: {e}"), true),
             }
         }
+        // Out-of-core: poll the loader (never blocks); a new level changes the request.
+        self.lod = self.data.as_ref().and_then(|d| d.scene.lod_status());
+        if let Some(l) = &self.lod {
+            if !l.finished {
+                ctx.request_repaint_after(LOD_POLL);
+            }
+        }
     }
 
     fn data_name(&self) -> String {
@@ -357,9 +359,9 @@ impl ViewerApp {
 
     fn install_data(&mut self, data: LoadedData) {
         self.epoch += 1;
-        self.scenes.clear();
-        self.scene_job = None;
+        self.step_job = None;
         self.prefetch_job = None;
+        self.prefetched.clear();
         if let Some(rj) = self.render_job.take() {
             rj.job.cancel();
         }
@@ -367,6 +369,8 @@ impl ViewerApp {
         if let Some(p) = &data.path {
             self.prefs.remember(p);
         }
+        // Scenes open at step 0; a restored session's step is then a refit away.
+        self.scene_step = 0;
         self.state.time.step = self
             .state
             .time
@@ -382,8 +386,10 @@ impl ViewerApp {
                 .surfaces
                 .push(panels::new_surface(&self.state, &data));
         }
+        self.lod = data.scene.lod_status();
         self.data = Some(data);
         self.stats.datasets_loaded += 1;
+        self.stats.scenes_built += 1;
     }
 
     fn finish_render(
@@ -416,6 +422,7 @@ impl ViewerApp {
                         elapsed: img.elapsed,
                         rays: img.rays,
                         size: [img.width, img.height],
+                        lod_level: img.lod_level,
                     });
                     self.shown_times.push_back(Instant::now());
                     self.stats.renders_shown += 1;
@@ -439,11 +446,16 @@ impl ViewerApp {
         }
     }
 
+    /// True when the scene holds the step the state asks for.
+    fn scene_ready(&self) -> bool {
+        self.data.is_some() && self.step_job.is_none() && self.scene_step == self.state.time.step
+    }
+
     fn start_render(&mut self, request: RenderRequest) {
-        let Some(key) = self.wanted_scene_key() else {
+        if !self.scene_ready() || request.step != self.scene_step {
             return;
-        };
-        let Some(scene) = self.cached_scene(key) else {
+        }
+        let Some(scene) = self.data.as_ref().map(|d| Arc::clone(&d.scene)) else {
             return;
         };
         self.generation += 1;
@@ -460,7 +472,7 @@ impl ViewerApp {
         self.stats.renders_started += 1;
     }
 
-    /// The request the current state asks for, if a scene is ready.
+    /// The request the current state asks for (`None` before data and a viewport exist).
     pub fn desired_request(&self, scale: u32) -> Option<RenderRequest> {
         let data = self.data.as_ref()?;
         let [w, h] = self.viewport_px;
@@ -478,6 +490,7 @@ impl ViewerApp {
             clip_planes: self.state.clip_planes.clone(),
             options: self.state.render,
             step: self.state.time.step,
+            lod_levels: self.lod.as_ref().map_or(0, |l| l.loaded_levels),
         })
     }
 
@@ -488,37 +501,18 @@ impl ViewerApp {
     }
 
     fn schedule(&mut self, ctx: &egui::Context) {
-        // Scene for the current step.
-        if let Some(key) = self.wanted_scene_key() {
-            let have = self.cached_scene(key).is_some();
-            let building = self.scene_job.as_ref().is_some_and(|(k, _)| *k == key)
-                || self.prefetch_job.as_ref().is_some_and(|(k, _)| *k == key);
-            if !have && !building {
-                // A job for another step or intersector is no longer wanted.
-                self.scene_job = self.spawn_scene_job(key).map(|j| (key, j));
-            }
-            if have && self.prefetch_job.is_none() && self.scene_job.is_none() {
-                self.prefetch(key);
-            }
-        }
+        self.schedule_step();
         // Render.
         let interacting = self.is_interacting(ctx);
         let scale = if interacting { INTERACTIVE_SCALE } else { 1 };
         let Some(wanted) = self.desired_request(scale) else {
             return;
         };
-        if self
-            .wanted_scene_key()
-            .and_then(|k| self.cached_scene(k))
-            .is_none()
-        {
+        if !self.scene_ready() {
             return;
         }
         let same_as = |r: &RenderRequest| *r == wanted;
-        if self
-            .shown
-            .as_ref()
-            .is_some_and(|s| same_as(&s.request) && s.request.step == wanted.step)
+        if self.shown.as_ref().is_some_and(|s| same_as(&s.request))
             && self.render_job.as_ref().is_none_or(|r| same_as(&r.request))
         {
             return;
@@ -531,8 +525,18 @@ impl ViewerApp {
             self.pending_render = None;
             return;
         }
+        // Out-of-core: a frame of a coarser level is still worth showing; let it finish.
+        let only_lod_differs = |r: &RenderRequest| {
+            RenderRequest {
+                lod_levels: wanted.lod_levels,
+                ..r.clone()
+            } == wanted
+        };
         match &self.render_job {
             None => self.start_render(wanted),
+            Some(r) if r.epoch == self.epoch && only_lod_differs(&r.request) => {
+                self.pending_render = Some(wanted);
+            }
             Some(r) if r.request.scale == 1 || r.epoch != self.epoch => {
                 // A full-resolution frame would arrive stale: cancel it and start over.
                 r.job.cancel();
@@ -549,11 +553,28 @@ impl ViewerApp {
         }
     }
 
-    /// Builds the scenes of the next steps in the background.
-    fn prefetch(&mut self, current: SceneKey) {
+    /// Switches the scene to the wanted step (a refit job) and prefetches the next ones.
+    fn schedule_step(&mut self) {
         let Some(data) = &self.data else { return };
+        let scene = Arc::clone(&data.scene);
         let count = data.step_count();
-        if count <= 1 {
+        let wanted = self.state.time.step;
+        if wanted != self.scene_step && self.step_job.is_none() {
+            // The refit takes the scene's write lock: stop the running frame first.
+            if let Some(r) = self.render_job.take() {
+                r.job.cancel();
+                self.stats.renders_discarded += 1;
+            }
+            self.pending_render = None;
+            let job = Job::spawn(
+                format!("switching to step {wanted}"),
+                self.repaint_fn(),
+                move |control| scene.set_step(wanted, control),
+            );
+            self.step_job = Some((wanted, job));
+            return;
+        }
+        if count <= 1 || self.step_job.is_some() || self.prefetch_job.is_some() {
             return;
         }
         let mut t = self.state.time;
@@ -562,12 +583,14 @@ impl ViewerApp {
                 return;
             };
             t.step = next;
-            let key = SceneKey {
-                step: next,
-                ..current
-            };
-            if self.cached_scene(key).is_none() {
-                self.prefetch_job = self.spawn_scene_job(key).map(|j| (key, j));
+            if next != self.scene_step && !self.prefetched.contains(&next) {
+                let scene = Arc::clone(&scene);
+                let job = Job::spawn(
+                    format!("prefetching step {next}"),
+                    self.repaint_fn(),
+                    move |control| scene.prefetch(next, control),
+                );
+                self.prefetch_job = Some((next, job));
                 return;
             }
         }
@@ -590,12 +613,13 @@ impl ViewerApp {
             self.state.time.playing = false;
             return;
         };
-        // Advance only when the next step is ready (no stutter through unbuilt steps).
-        let key = SceneKey {
-            step: next,
-            epoch: self.epoch,
-        };
-        if self.cached_scene(key).is_some() {
+        // Advance once the current step is on screen and the next one is loaded (no
+        // stutter through steps still being read).
+        let shown_current = self
+            .shown
+            .as_ref()
+            .is_some_and(|s| s.request.step == t.step);
+        if shown_current && self.prefetched.contains(&next) && self.step_job.is_none() {
             self.state.time.step = next;
             self.last_step_advance = Instant::now();
         }
@@ -616,14 +640,7 @@ impl ViewerApp {
                 self.state.files.clear();
                 self.start_load(None, None);
             }
-            Command::OpenFiles(files) => {
-                let Some(first) = files.first().cloned() else {
-                    return;
-                };
-                self.state.files = files;
-                self.active_file = 0;
-                self.open_path(first);
-            }
+            Command::OpenFiles(files) => self.open_files(files),
             Command::OpenRaw(path, layout) => {
                 self.state.raw_layout = Some(layout.clone());
                 if !self.state.files.contains(&path) {
@@ -678,6 +695,7 @@ impl ViewerApp {
                     let files = s.files.clone();
                     let raw = s.raw_layout.clone();
                     self.state = s;
+                    self.active_file = 0;
                     match (files.first(), raw) {
                         (None, _) => self.start_load(None, None),
                         (Some(f), Some(layout)) => self.start_load(Some(f.clone()), Some(layout)),
@@ -709,18 +727,55 @@ impl ViewerApp {
                 height,
             } => self.start_screenshot(path, width, height),
             Command::CancelJobs => {
-                for j in [&self.load_job].into_iter().flatten() {
-                    j.cancel();
-                }
+                // Dropping a job raises its cancel flag. A running step switch is left to
+                // finish (a refit is short and holds the scene's lock).
                 self.load_job = None;
-                self.scene_job = None;
                 self.prefetch_job = None;
                 if let Some(r) = self.render_job.take() {
                     r.job.cancel();
                 }
+                self.pending_render = None;
                 self.screenshot_job = None;
+                self.state.time.playing = false;
             }
             Command::RemoveSurface(_) | Command::RemoveClipBox(_) | Command::RemoveClipPlane(_) => {
+            }
+        }
+    }
+
+    /// Several files of one kind and shape open as a time series (see [`group_files`]).
+    fn open_files(&mut self, files: Vec<PathBuf>) {
+        match group_files(&files) {
+            FileGroup::Single(p) => {
+                self.state.files = vec![p.clone()];
+                self.active_file = 0;
+                self.open_path(p);
+            }
+            FileGroup::Series { pattern, steps } => {
+                self.notify(
+                    format!(
+                        "opening {steps} files as a time series ({})",
+                        pattern.display()
+                    ),
+                    false,
+                );
+                self.state.files = vec![pattern.clone()];
+                self.active_file = 0;
+                self.open_path(pattern);
+            }
+            FileGroup::List { files, reason } => {
+                let Some(first) = files.first().cloned() else {
+                    return;
+                };
+                if files.len() > 1 {
+                    self.notify(
+                        format!("{} files, shown one at a time: {reason}", files.len()),
+                        false,
+                    );
+                }
+                self.state.files = files;
+                self.active_file = 0;
+                self.open_path(first);
             }
         }
     }
@@ -736,12 +791,15 @@ impl ViewerApp {
     }
 
     fn start_screenshot(&mut self, path: PathBuf, width: u32, height: u32) {
-        let (Some(key), Some(mut req)) = (self.wanted_scene_key(), self.desired_request(1)) else {
+        let Some(mut req) = self.desired_request(1) else {
             self.notify("screenshot: nothing to render yet", true);
             return;
         };
-        let Some(scene) = self.cached_scene(key) else {
-            self.notify("screenshot: the scene is still being built", true);
+        if !self.scene_ready() {
+            self.notify("screenshot: the scene is still being prepared", true);
+            return;
+        }
+        let Some(scene) = self.data.as_ref().map(|d| Arc::clone(&d.scene)) else {
             return;
         };
         req.width = width.clamp(1, MAX_RENDER_SIDE * 4);
@@ -835,7 +893,11 @@ impl ViewerApp {
             egui::CollapsingHeader::new("Rendering")
                 .default_open(true)
                 .show(ui, |ui| {
-                    panels::render_options_ui(ui, &mut self.state);
+                    panels::render_options_ui(
+                        ui,
+                        &mut self.state,
+                        self.data.as_ref().map(|d| d.kind),
+                    );
                 });
             egui::CollapsingHeader::new("Camera")
                 .default_open(false)
@@ -887,24 +949,25 @@ impl ViewerApp {
             if let Some(j) = &self.load_job {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
-            if let Some((_, j)) = &self.scene_job {
+            if let Some((_, j)) = &self.step_job {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
-            if let Some((k, j)) = &self.prefetch_job {
-                job_row(
-                    ui,
-                    &format!("prefetch step {}", k.step),
-                    j.progress(),
-                    j.started,
-                );
+            if let Some((_, j)) = &self.prefetch_job {
+                job_row(ui, &j.label, j.progress(), j.started);
             }
             if let Some(j) = &self.screenshot_job {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
-            if self.load_job.is_some() || self.scene_job.is_some() || self.screenshot_job.is_some()
+            if self.load_job.is_some()
+                || self.prefetch_job.is_some()
+                || self.screenshot_job.is_some()
             {
                 cancel = ui.button("Cancel").clicked();
                 ui.ctx().request_repaint_after(Duration::from_millis(100));
+            }
+            if let Some(l) = &self.lod {
+                ui.separator();
+                lod_ui(ui, l, self.shown.as_ref().and_then(|s| s.lod_level));
             }
             if cancel {
                 self.commands.push(Command::CancelJobs);
@@ -1122,6 +1185,31 @@ impl ViewerApp {
             self.commands.push(Command::OpenFiles(dropped));
         }
     }
+}
+
+/// The out-of-core indicator: levels loaded and drawn, loading progress, resident memory.
+fn lod_ui(ui: &mut egui::Ui, l: &LodStatus, drawn_level: Option<usize>) {
+    let count = l.level_count.max(1);
+    let state = if let Some(e) = &l.error {
+        format!("stopped: {e}")
+    } else if l.finished && l.budget_limited {
+        "memory budget reached".to_string()
+    } else if l.finished {
+        "loaded".to_string()
+    } else {
+        "loading…".to_string()
+    };
+    ui.add(
+        egui::ProgressBar::new(l.loaded_levels as f32 / count as f32)
+            .desired_width(100.0)
+            .text(format!("LOD {}/{count}", l.loaded_levels)),
+    );
+    let drawn = drawn_level.map_or_else(String::new, |d| format!(", drawn at {}", d + 1));
+    ui.label(format!(
+        "LOD level {}/{count}{drawn} · {state} · {:.1} MiB resident",
+        l.loaded_levels,
+        l.resident_bytes as f64 / f64::from(1u32 << 20)
+    ));
 }
 
 /// A raw file needs its layout from the user unless a `NAME.json` sidecar gives it.

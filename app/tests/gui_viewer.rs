@@ -1,33 +1,43 @@
 //! Drives the real viewer (`ViewerApp`, all panels and jobs) headless with egui_kittest.
 //!
-//! The data is real (the embedded Marschner–Lobb sample from `CoreBackend`, and a small
-//! in-memory time series); scenes come from a recording backend that logs every prepare and
-//! render request and paints each frame in the color of the first visible surface, so the
-//! tests can check what reached the renderer and what arrived on screen.
+//! Two kinds of test:
+//! - UI logic with a recording backend: the data summary is real (the embedded
+//!   Marschner–Lobb sample from `CoreBackend`) or a small described series; the scene logs
+//!   every build, step switch, prefetch and render request and paints each frame in the color
+//!   of the first visible surface, so the tests can check what reached the renderer and what
+//!   arrived on screen.
+//! - The real library (`CoreBackend`) on generated files: a numbered tet-mesh series opened
+//!   as a time series (normals, refit on step, prefetch) and an `.isot` file whose level
+//!   indicator must reach the finest level; the frames are compared with renders of scenes
+//!   built independently (a rebuild at that step, the in-core volume).
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex, RwLock};
 use std::time::{Duration, Instant};
 
 use egui::accesskit::Role;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable as _;
+use glam::Vec3;
 use isoscope::ui::backend::{
-    Backend, CoreBackend, DataKind, PreparedScene, RenderRequest, RenderedImage,
+    Backend, CoreBackend, DataKindLabel, LoadedData, OpenChoices, PreparedScene, RenderRequest,
+    RenderedImage, StepSwitch,
 };
 use isoscope::ui::jobs::JobControl;
 use isoscope::ui::panels::Command;
-use isoscope::ui::state::{IntersectorChoice, KeepSide, RawLayoutState, ViewerState};
+use isoscope::ui::state::{KeepSide, RawLayoutState, ViewerState};
 use isoscope::viewer::ViewerApp;
-use volume_core::series::{StepLoader, TimeSeries};
-use volume_core::{Grid, RectilinearVolume};
+use volume_core::math::Aabb;
 
 #[derive(Default)]
 struct Log {
-    /// Voxel (0,0,0) of every volume a scene was built for, with the intersector.
-    prepares: Vec<(f64, IntersectorChoice)>,
+    /// Scenes built (one per opened dataset): the name of the data.
+    prepares: Vec<String>,
     requests: Vec<RenderRequest>,
+    /// Every `set_step` call, in order.
+    steps: Vec<usize>,
+    prefetches: Vec<usize>,
 }
 
 /// Blocks scene builds while closed (to check that the UI keeps running).
@@ -58,6 +68,9 @@ struct Recorder {
 
 struct RecordingScene {
     recorder: Arc<Recorder>,
+    /// The step held; renders read-lock it for their whole duration and step switches
+    /// write-lock it, as the real scene's lock does.
+    step: RwLock<usize>,
 }
 
 impl PreparedScene for RecordingScene {
@@ -66,15 +79,22 @@ impl PreparedScene for RecordingScene {
         request: &RenderRequest,
         cancel: &AtomicBool,
     ) -> Result<Option<RenderedImage>, String> {
+        let step = self.step.read().unwrap();
+        // The viewer cancels a running frame before it switches the step.
+        if cancel.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        assert_eq!(
+            request.step,
+            *step,
+            "a frame is rendered only for the step the scene holds"
+        );
         self.recorder
             .log
             .lock()
             .unwrap()
             .requests
             .push(request.clone());
-        if cancel.load(Ordering::Relaxed) {
-            return Ok(None);
-        }
         let w = (request.width / request.scale).max(1);
         let h = (request.height / request.scale).max(1);
         let c = request
@@ -94,28 +114,23 @@ impl PreparedScene for RecordingScene {
             rgba8: px.repeat((w * h) as usize),
             elapsed: Duration::from_millis(1),
             rays: u64::from(w * h),
+            lod_level: None,
         }))
     }
-}
 
-/// Four steps; voxel values of step s are `s + x index`.
-struct Steps;
+    fn set_step(&self, step: usize, _control: &JobControl) -> Result<StepSwitch, String> {
+        self.recorder.log.lock().unwrap().steps.push(step);
+        let mut current = self.step.write().unwrap();
+        if *current == step {
+            return Ok(StepSwitch::Unchanged);
+        }
+        *current = step;
+        Ok(StepSwitch::Refit)
+    }
 
-impl StepLoader for Steps {
-    fn step_count(&self) -> usize {
-        4
-    }
-    fn load_step(&self, step: usize) -> Result<RectilinearVolume, String> {
-        let dims = [6, 5, 4];
-        let grid = Grid::uniform(dims, [0.0; 3], [1.0, 1.0, 2.0]).map_err(|e| e.to_string())?;
-        let voxels: Vec<f32> = (0..120).map(|i| (step + i % 6) as f32).collect();
-        RectilinearVolume::new(grid, voxels.into()).map_err(|e| e.to_string())
-    }
-    fn time_value(&self, step: usize) -> Option<f64> {
-        Some(0.5 * step as f64)
-    }
-    fn describe(&self) -> String {
-        "test steps".into()
+    fn prefetch(&self, step: usize, _control: &JobControl) -> Result<(), String> {
+        self.recorder.log.lock().unwrap().prefetches.push(step);
+        Ok(())
     }
 }
 
@@ -123,41 +138,51 @@ struct TestBackend {
     recorder: Arc<Recorder>,
 }
 
+impl TestBackend {
+    fn scene(&self, name: &str) -> Arc<dyn PreparedScene> {
+        self.recorder.gate.wait_open();
+        self.recorder.log.lock().unwrap().prepares.push(name.into());
+        Arc::new(RecordingScene {
+            recorder: Arc::clone(&self.recorder),
+            step: RwLock::new(0),
+        })
+    }
+}
+
 impl Backend for TestBackend {
+    /// `series.test`: four steps of a 6×5×4 grid, times 0, 0.5, 1, 1.5.
     fn open(
         &self,
         path: &std::path::Path,
         _raw: Option<&RawLayoutState>,
+        _choices: OpenChoices,
         _control: &JobControl,
-    ) -> Result<DataKind, String> {
-        if path.ends_with("series.test") {
-            let s = TimeSeries::open(Arc::new(Steps)).map_err(|e| e.to_string())?;
-            Ok(DataKind::Series(Arc::new(s)))
-        } else {
-            Err(format!("{}: no such test file", path.display()))
+    ) -> Result<LoadedData, String> {
+        if !path.ends_with("series.test") {
+            return Err(format!("{}: no such test file", path.display()));
         }
+        Ok(LoadedData {
+            name: "series.test".into(),
+            path: Some(path.to_path_buf()),
+            kind: DataKindLabel::Grid,
+            summary: "grid 6x5x4 f32, 4 steps".into(),
+            dims: [6, 5, 4],
+            bounds: Aabb::new(Vec3::ZERO, Vec3::new(5.0, 4.0, 6.0)),
+            value_range: (0.0, 8.0),
+            histogram: None,
+            times: vec![0.0, 0.5, 1.0, 1.5],
+            scene: self.scene("series.test"),
+        })
     }
 
-    fn default_dataset(&self, control: &JobControl) -> Result<(String, DataKind), String> {
-        CoreBackend.default_dataset(control)
-    }
-
-    fn prepare(
+    fn default_dataset(
         &self,
-        volume: &RectilinearVolume,
-        intersector: IntersectorChoice,
-        _control: &JobControl,
-    ) -> Result<Arc<dyn PreparedScene>, String> {
-        self.recorder.gate.wait_open();
-        self.recorder
-            .log
-            .lock()
-            .unwrap()
-            .prepares
-            .push((volume.value_f64(0, 0, 0), intersector));
-        Ok(Arc::new(RecordingScene {
-            recorder: Arc::clone(&self.recorder),
-        }))
+        choices: OpenChoices,
+        control: &JobControl,
+    ) -> Result<LoadedData, String> {
+        let mut data = CoreBackend.default_dataset(choices, control)?;
+        data.scene = self.scene("default");
+        Ok(data)
     }
 }
 
@@ -300,33 +325,41 @@ fn a_clip_box_reaches_the_renderer_and_toggles() {
 }
 
 #[test]
-fn stepping_the_time_slider_builds_and_shows_that_step() {
+fn stepping_the_time_slider_refits_prefetches_and_shows_that_step() {
     let (mut h, rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
     step_until(&mut h, "the series", |a| a.data().is_some());
     settle(&mut h);
     assert_eq!(h.state().data().unwrap().step_count(), 4);
+    // The next steps (1 and 2) are loaded ahead in the background.
+    step_until(&mut h, "prefetching steps 1 and 2", |a| {
+        a.prefetched_steps().contains(&1) && a.prefetched_steps().contains(&2)
+    });
 
     h.get_by_role_and_label(Role::Slider, "Time step")
         .set_value_accesskit(2.0);
     h.run_steps(2);
     assert_eq!(h.state().state.time.step, 2);
     settle(&mut h);
-    assert_eq!(h.state().shown_frame().unwrap().request.step, 2);
-    // Step s has value s at voxel (0,0,0): the scene for step 2 was built from step 2's data.
-    assert!(
-        rec.log
-            .lock()
-            .unwrap()
-            .prepares
-            .iter()
-            .any(|&(v, _)| v == 2.0)
-    );
+    let shown = h.state().shown_frame().unwrap().request.clone();
+    assert_eq!(shown.step, 2);
+    assert_eq!(h.state().scene_step(), 2);
+    // The step and its time value are shown.
+    h.get_by_label_contains("step 2 / 3  t = 1.0000");
 
     h.get_by_label("Next").click();
     h.run_steps(2);
     assert_eq!(h.state().state.time.step, 3);
     settle(&mut h);
     assert_eq!(h.state().shown_frame().unwrap().request.step, 3);
+
+    let log = rec.log.lock().unwrap();
+    assert_eq!(log.prepares.len(), 1, "stepping never rebuilds the scene");
+    assert_eq!(log.steps, vec![2, 3], "one refit per step switch");
+    assert_eq!(h.state().stats.steps_refit, 2);
+    assert!(log.prefetches.contains(&1) && log.prefetches.contains(&2));
+    // Every request the renderer saw matched the step the scene held at that time (the
+    // recording scene asserts it), and the renderer received the shown step-2 frame.
+    assert!(log.requests.iter().any(|r| r == &shown));
 }
 
 #[test]
@@ -361,16 +394,19 @@ fn the_ui_keeps_running_while_a_scene_builds() {
     let mut h = Harness::builder()
         .with_size(egui::vec2(1000.0, 700.0))
         .build_eframe(move |cc| ViewerApp::with_backend(&cc.egui_ctx, backend, vec![]));
-    step_until(&mut h, "the default sample", |a| a.data().is_some());
     let start = Instant::now();
     for _ in 0..20 {
         h.step();
     }
-    // 20 frames while the build is blocked: the UI thread did not wait for it.
+    // 20 frames while the scene build is blocked: the UI thread did not wait for it.
     assert!(start.elapsed() < Duration::from_secs(10));
     assert!(h.state().is_busy());
+    assert!(h.state().data().is_none());
     assert!(h.state().shown_frame().is_none());
+    // The status bar shows the running job with its Cancel button.
+    h.get_by_label("Cancel");
     recorder.gate.set_closed(false);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
     settle(&mut h);
     assert_eq!(recorder.log.lock().unwrap().prepares.len(), 1);
 }
@@ -430,4 +466,209 @@ fn a_session_saves_and_restores() {
         h.state().shown_frame().unwrap().request.surfaces,
         saved.surfaces
     );
+}
+
+// ---- the real library on generated files ------------------------------------------------
+
+/// A harness on the real backend, opening `files`.
+fn real_harness(files: Vec<PathBuf>) -> Harness<'static, ViewerApp> {
+    Harness::builder()
+        .with_size(egui::vec2(900.0, 640.0))
+        .build_eframe(move |cc| ViewerApp::with_backend(&cc.egui_ctx, Arc::new(CoreBackend), files))
+}
+
+/// Renders `request` on the app's scene, and on `truth` (a scene built independently), and
+/// returns both images' pixels.
+fn render_both(
+    app: &ViewerApp,
+    truth: &isoscope::scene::AnyScene,
+    request: &RenderRequest,
+) -> (Vec<u8>, Vec<u8>) {
+    let cancel = AtomicBool::new(false);
+    let ours = app
+        .data()
+        .unwrap()
+        .scene
+        .render(request, &cancel)
+        .unwrap()
+        .unwrap();
+    let camera = isoscope::ui::core_backend::camera(request);
+    let settings = isoscope::ui::core_backend::settings(request);
+    let theirs = truth.render(&camera, &settings, &cancel).unwrap();
+    (ours.rgba8, theirs.rgba8)
+}
+
+/// A small request of the current state (full resolution, 160×120).
+fn small_request(app: &ViewerApp) -> RenderRequest {
+    let mut r = app.desired_request(1).unwrap();
+    r.width = 160;
+    r.height = 120;
+    r
+}
+
+/// Four numbered `.vtu` files of a tet ball: one field, `moving_gaussian`, whose centre moves
+/// per step; step 2 also moves the points (scaled by 1.1), step 3 is back in place.
+fn write_tet_series(dir: &std::path::Path) -> Vec<PathBuf> {
+    use data_samples::tets::{TetShape, moving_gaussian_steps, tet_mesh};
+    let base = tet_mesh(TetShape::Ball, 7).unwrap();
+    let values = moving_gaussian_steps(&base, 4);
+    values
+        .into_iter()
+        .enumerate()
+        .map(|(s, v)| {
+            let mut mesh = base.clone();
+            mesh.fields = vec![volume_core::tet::PointField::new("moving_gaussian", v)];
+            if s == 2 {
+                for p in &mut mesh.points {
+                    *p = p.map(|c| c * 1.1);
+                }
+            }
+            let path = dir.join(format!("ball_{s:03}.vtu"));
+            formats::mesh::write_vtu(&path, &mesh).unwrap();
+            path
+        })
+        .collect()
+}
+
+#[test]
+fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
+    use isoscope::scene::{SceneOptions, open_scene};
+    use volume_core::tet::TetNormals;
+
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_tet_series(dir.path());
+    // Four numbered files given together open as one time series.
+    let mut h = real_harness(files);
+    step_until(&mut h, "the mesh series", |a| a.data().is_some());
+    let data = h.state().data().unwrap();
+    assert_eq!(data.kind, DataKindLabel::Tet);
+    assert_eq!(data.step_count(), 4);
+    assert_eq!(
+        h.state().state.files,
+        vec![dir.path().join("ball_*.vtu")],
+        "the session records the series pattern"
+    );
+    settle(&mut h);
+    assert!(!h.state().state.render.smooth_normals, "faceted by default");
+
+    // Normals: the radio button reaches the renderer.
+    h.get_by_label("Smooth").click();
+    h.run_steps(2);
+    assert!(h.state().state.render.smooth_normals);
+    settle(&mut h);
+    assert!(
+        h.state()
+            .shown_frame()
+            .unwrap()
+            .request
+            .options
+            .smooth_normals
+    );
+
+    // Steps 1 and 2 are prefetched while step 0 is shown.
+    step_until(&mut h, "prefetching steps 1 and 2", |a| {
+        a.prefetched_steps().contains(&1) && a.prefetched_steps().contains(&2)
+    });
+    let pattern = dir.path().join("ball_*.vtu");
+    for step in [2usize, 3, 1] {
+        h.get_by_role_and_label(Role::Slider, "Time step")
+            .set_value_accesskit(step as f64);
+        h.run_steps(2);
+        settle(&mut h);
+        let app = h.state();
+        assert_eq!(app.scene_step(), step);
+        let shown = &app.shown_frame().unwrap().request;
+        assert_eq!(shown.step, step, "a frame of the new step arrived");
+        assert!(shown.options.smooth_normals);
+        // Independent truth: the same step opened from scratch (a fresh BVH build).
+        let truth = open_scene(
+            &pattern,
+            &SceneOptions {
+                step,
+                normals: TetNormals::Smooth,
+                ..SceneOptions::default()
+            },
+        )
+        .unwrap();
+        let (ours, theirs) = render_both(app, &truth, &small_request(app));
+        let bg = ours.chunks(4).filter(|p| p[..3] == ours[..3]).count();
+        assert!(bg < ours.len() / 4, "the surface is in view at step {step}");
+        assert_eq!(
+            ours, theirs,
+            "refit at step {step} draws what a rebuild draws"
+        );
+    }
+    let stats = &h.state().stats;
+    assert_eq!(stats.scenes_built, 1, "stepping never rebuilds");
+    assert_eq!(stats.steps_refit, 3);
+    assert_eq!(stats.steps_rebuilt, 0);
+}
+
+#[test]
+fn an_isot_file_refines_to_the_finest_level_with_a_visible_indicator() {
+    use isoscope::scene::{AnyScene, GridData};
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ml.isot");
+    let volume =
+        data_samples::marschner_lobb::generate([41, 37, 33], volume_core::VoxelType::U16).unwrap();
+    let layout = volume_core::ooc::TreeletLayout::new([41, 37, 33], 3).unwrap();
+    formats::treelet::write_isot_volume(&path, &volume, layout, &mut |_, _| {}).unwrap();
+
+    let mut h = real_harness(vec![path]);
+    step_until(&mut h, "the .isot file", |a| a.data().is_some());
+    assert_eq!(h.state().data().unwrap().kind, DataKindLabel::OutOfCore);
+    let count = h.state().lod_status().unwrap().level_count;
+    assert!(count >= 3, "{count} levels");
+    // Watch the indicator and the shown frames until a frame is drawn at the finest level.
+    let (mut indicator, mut drawn) = (Vec::new(), Vec::new());
+    let start = Instant::now();
+    loop {
+        let a = h.state();
+        let loaded = a.lod_status().unwrap().loaded_levels;
+        if indicator.last() != Some(&loaded) {
+            indicator.push(loaded);
+        }
+        if let Some(f) = a.shown_frame()
+            && drawn.last() != Some(&f.request.lod_levels)
+        {
+            drawn.push(f.request.lod_levels);
+        }
+        if a.shown_frame()
+            .is_some_and(|f| f.request.lod_levels == count && f.request.scale == 1)
+            && a.lod_status().is_some_and(|l| l.finished)
+        {
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no frame at the finest level: indicator {indicator:?}, drawn {drawn:?}"
+        );
+        h.step();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // The indicator started coarse and advanced level by level to the finest.
+    assert!(indicator[0] < count, "{indicator:?}");
+    assert!(indicator.windows(2).all(|w| w[0] < w[1]), "{indicator:?}");
+    assert_eq!(indicator.last(), Some(&count));
+    assert!(drawn[0] < count, "the first frame is coarse: {drawn:?}");
+    let app = h.state();
+    let lod = app.lod_status().unwrap();
+    assert_eq!(lod.loaded_levels, count);
+    assert_eq!(lod.error, None);
+    assert_eq!(app.shown_frame().unwrap().lod_level, Some(count - 1));
+    // The indicator shows the finest level.
+    h.run_steps(1);
+    h.get_by_label_contains(&format!("LOD level {count}/{count}"));
+    // At the finest level the out-of-core frame equals the in-core render of the volume.
+    let truth = AnyScene::Grid(GridData::from_volume(
+        std::path::Path::new("in-core"),
+        volume,
+        volume_core::intersect::Intersector::Exact,
+    ));
+    let app = h.state();
+    let (ours, theirs) = render_both(app, &truth, &small_request(app));
+    let bg = ours.chunks(4).filter(|p| p[..3] == ours[..3]).count();
+    assert!(bg < ours.len() / 4, "the surface is in view");
+    assert_eq!(ours, theirs);
 }

@@ -1,10 +1,12 @@
-//! The viewer's link to the library: opening data, building scenes and rendering.
+//! The viewer's link to the library: opening data (which builds its scene), switching time
+//! steps and rendering.
 //!
 //! The viewer talks to a [`Backend`] so that the same UI code drives the real library
-//! ([`CoreBackend`]: `formats::open`, the kd-tree scene and `volume_core::render::render`,
-//! exactly the API the CLI uses) and, in tests, a recording double. Scenes are built once per
-//! volume (and intersector); everything that changes per frame (camera, isovalues, colors,
-//! clips, light) travels in a [`RenderRequest`], so sweeping an isovalue never rebuilds.
+//! ([`CoreBackend`]: `crate::scene::open_scene` and `AnyScene::render`, exactly the path the
+//! CLI takes) and, in tests, a recording double. A scene is built once per dataset;
+//! everything that changes per frame (camera, isovalues, colors, clips, light, intersector,
+//! tet normals) travels in a [`RenderRequest`], so sweeping an isovalue never rebuilds, and a
+//! new time step is a refit ([`PreparedScene::set_step`]), not a rebuild.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -12,10 +14,9 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use glam::{DVec3, Vec3};
-use volume_core::RectilinearVolume;
 use volume_core::math::Aabb;
-use volume_core::series::TimeSeries;
 use volume_core::stats::Histogram;
+use volume_core::volume::Grid;
 
 use super::camera::CameraPose;
 use super::jobs::JobControl;
@@ -38,8 +39,11 @@ pub struct RenderRequest {
     pub clip_boxes: Vec<ClipBoxState>,
     pub clip_planes: Vec<ClipPlaneState>,
     pub options: RenderOptions,
-    /// Time step the scene belongs to.
+    /// Time step the scene holds.
     pub step: usize,
+    /// Out-of-core levels loaded when the request was made (0 for in-core data): a newly
+    /// published level changes the request, so the view re-renders as the data refines.
+    pub lod_levels: usize,
 }
 
 /// A finished frame.
@@ -52,9 +56,35 @@ pub struct RenderedImage {
     pub elapsed: Duration,
     /// Primary rays traced.
     pub rays: u64,
+    /// Out-of-core: the finest level (0 = coarsest) this frame reached.
+    pub lod_level: Option<usize>,
 }
 
-/// A scene built for one volume: renders any request for that volume.
+/// How a time step was switched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepSwitch {
+    /// The acceleration structure was refit in place (thesis §7.6 for grids, §8.5.2 for meshes).
+    Refit,
+    /// The step had another shape: the structure was rebuilt.
+    Rebuilt,
+    /// The scene already held that step.
+    Unchanged,
+}
+
+/// Out-of-core loading progress (a level/progress indicator).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LodStatus {
+    /// Levels published for the current isovalues (1 = the top treelet only).
+    pub loaded_levels: usize,
+    pub level_count: usize,
+    pub resident_bytes: u64,
+    /// The loader is idle for the current isovalues.
+    pub finished: bool,
+    pub budget_limited: bool,
+    pub error: Option<String>,
+}
+
+/// A dataset with its built scene: renders any request, switches steps.
 pub trait PreparedScene: Send + Sync {
     /// Renders; `Ok(None)` when `cancel` was raised, `Err` for a request the renderer refuses.
     fn render(
@@ -62,95 +92,66 @@ pub trait PreparedScene: Send + Sync {
         request: &RenderRequest,
         cancel: &AtomicBool,
     ) -> Result<Option<RenderedImage>, String>;
+
+    /// Makes `step` current (a refit where the structure allows). Call from a job.
+    fn set_step(&self, step: usize, control: &JobControl) -> Result<StepSwitch, String>;
+
+    /// Loads `step`'s data ahead of time so that a later [`Self::set_step`] only refits.
+    /// Call from a job.
+    fn prefetch(&self, step: usize, control: &JobControl) -> Result<(), String>;
+
+    /// Out-of-core loading progress; `None` for in-core data. Never blocks.
+    fn lod_status(&self) -> Option<LodStatus> {
+        None
+    }
 }
 
-/// Data as the viewer holds it.
-#[derive(Clone)]
-pub enum DataKind {
-    Volume(Arc<RectilinearVolume>),
-    Series(Arc<TimeSeries>),
-}
-
-impl DataKind {
-    pub fn step_count(&self) -> usize {
-        match self {
-            DataKind::Volume(_) => 1,
-            DataKind::Series(s) => s.step_count(),
-        }
-    }
-
-    /// The volume shown at `step` (loads it for a series; call from a job).
-    pub fn volume_at(&self, step: usize) -> Result<Arc<RectilinearVolume>, String> {
-        match self {
-            DataKind::Volume(v) => Ok(Arc::clone(v)),
-            DataKind::Series(s) => s.step(step).map(Arc::new).map_err(|e| e.to_string()),
-        }
-    }
-
-    pub fn time_value(&self, step: usize) -> f64 {
-        match self {
-            DataKind::Volume(_) => 0.0,
-            DataKind::Series(s) => s.time_value(step),
-        }
-    }
-
-    fn first(&self) -> &RectilinearVolume {
-        match self {
-            DataKind::Volume(v) => v,
-            DataKind::Series(s) => s.first(),
-        }
-    }
+/// What kind of data is shown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DataKindLabel {
+    Grid,
+    Tet,
+    OutOfCore,
 }
 
 /// Number of histogram bins under the isovalue sliders.
 pub const HISTOGRAM_BINS: usize = 128;
 
-/// A loaded dataset with what the panels show about it.
+/// A loaded dataset: its scene and what the panels show about it.
 #[derive(Clone)]
 pub struct LoadedData {
     /// File name, or a description of the embedded sample.
     pub name: String,
     pub path: Option<PathBuf>,
-    pub kind: DataKind,
+    pub kind: DataKindLabel,
+    /// One line: dims and type, tet and point counts, levels.
+    pub summary: String,
+    /// Grid dims (`[0; 3]` for meshes).
     pub dims: [usize; 3],
-    pub voxel_type: String,
     pub bounds: Aabb,
-    /// Finite value range of the first step.
+    /// Finite value range of the first step (the slider range).
     pub value_range: (f64, f64),
-    pub histogram: Histogram,
+    /// `None` when the data is not resident (out-of-core).
+    pub histogram: Option<Histogram>,
+    /// Time value of every step (one entry for a single data set).
+    pub times: Vec<f64>,
+    pub scene: Arc<dyn PreparedScene>,
 }
 
 impl LoadedData {
-    /// Computes range, histogram and world bounds (parallel scans; call from a job).
-    pub fn new(name: String, path: Option<PathBuf>, kind: DataKind) -> Result<Self, String> {
-        let first = kind.first();
-        let stats = first.value_stats();
-        let (lo, hi) = stats
-            .finite_range
-            .ok_or_else(|| format!("{name}: no finite voxel values"))?;
-        let histogram = volume_core::dispatch_voxels!(&first.data, buf =>
-            Histogram::compute(buf.as_slice(), lo, hi, HISTOGRAM_BINS));
-        Ok(Self {
-            name,
-            path,
-            dims: first.dims(),
-            voxel_type: first.data.voxel_type().to_string(),
-            bounds: world_bounds(first),
-            value_range: (lo, hi),
-            histogram,
-            kind,
-        })
+    pub fn step_count(&self) -> usize {
+        self.times.len().max(1)
     }
 
-    pub fn step_count(&self) -> usize {
-        self.kind.step_count()
+    pub fn time_value(&self, step: usize) -> f64 {
+        self.times.get(step).copied().unwrap_or(step as f64)
     }
 }
 
-/// World-space bounds: the grid box, through the `world_from_grid` affine when present.
-pub fn world_bounds(volume: &RectilinearVolume) -> Aabb {
-    let (lo, hi) = volume.grid.grid_bounds();
-    let affine = volume.grid.world_from_grid();
+/// World-space bounds of a grid: its box, through the `world_from_grid` affine when present.
+pub fn grid_world_bounds(grid: &Grid) -> Aabb {
+    let (lo, hi) = grid.grid_bounds();
+    let affine = grid.world_from_grid();
     let mut b = Aabb::EMPTY;
     for corner in 0..8u32 {
         let p = DVec3::new(
@@ -164,26 +165,32 @@ pub fn world_bounds(volume: &RectilinearVolume) -> Aabb {
     b
 }
 
+/// How to build a scene (the render options that are fixed at build time are only initial
+/// values: the intersector and tet normals are switched in place later).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct OpenChoices {
+    pub intersector: IntersectorChoice,
+    pub smooth_normals: bool,
+}
+
 /// Opening data and building scenes; implemented by [`CoreBackend`] and by test doubles.
 pub trait Backend: Send + Sync + 'static {
-    /// Opens a file (raw files use `raw` when given). The error names the file and the reason.
+    /// Opens a file or series pattern and builds its scene (raw files use `raw` when given).
+    /// The error names the file and the reason.
     fn open(
         &self,
         path: &Path,
         raw: Option<&RawLayoutState>,
+        choices: OpenChoices,
         control: &JobControl,
-    ) -> Result<DataKind, String>;
+    ) -> Result<LoadedData, String>;
 
     /// The embedded default dataset, generated in memory.
-    fn default_dataset(&self, control: &JobControl) -> Result<(String, DataKind), String>;
-
-    /// Builds the acceleration structure for one volume.
-    fn prepare(
+    fn default_dataset(
         &self,
-        volume: &RectilinearVolume,
-        intersector: IntersectorChoice,
+        choices: OpenChoices,
         control: &JobControl,
-    ) -> Result<Arc<dyn PreparedScene>, String>;
+    ) -> Result<LoadedData, String>;
 }
 
 pub use super::core_backend::{CoreBackend, DEFAULT_SAMPLE_SIZE};

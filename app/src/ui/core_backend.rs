@@ -1,27 +1,42 @@
-//! [`CoreBackend`]: the viewer's link to the real library — `formats::open` for files,
-//! `data_samples` for the embedded sample, `AnyGridScene` (the implicit min/max kd-tree,
-//! thesis seed 004 ch. 7) and `volume_core::render::render`, the same render call the CLI
-//! makes.
+//! [`CoreBackend`]: the viewer's link to the real library. Files open through
+//! [`crate::scene::open_scene`] (grids with the implicit min/max kd-tree, thesis seed 004
+//! ch. 7; tet meshes with the min/max BVH, ch. 8; `.isot` out-of-core treelets, §7.7–7.8),
+//! the embedded sample comes from `data_samples`, and frames from [`AnyScene::render`] — the
+//! same open and render calls the CLI makes.
+//!
+//! Time steps are refits, not rebuilds: grids through `AnyGridScene::update_volume` (the
+//! series keeps prefetched steps in its cache), meshes through `TetScene::refit_scalars` /
+//! `refit_positions` with step data prefetched here.
 
+use std::collections::VecDeque;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 
+use formats::mesh::StepData;
 use glam::Vec3;
-use volume_core::grid_scene::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::render::{
-    Camera, ClipRegion, Keep, Light, LightKind, Projection, RenderSettings, Surface, render,
+    Camera, ClipRegion, Keep, Light, LightKind, Projection, RenderSettings, Surface,
 };
+use volume_core::stats::Histogram;
+use volume_core::tet::TetNormals;
 use volume_core::{RectilinearVolume, VoxelType};
 
-use super::backend::{Backend, DataKind, PreparedScene, RenderRequest, RenderedImage};
+use super::backend::{
+    Backend, DataKindLabel, HISTOGRAM_BINS, LoadedData, LodStatus, OpenChoices, PreparedScene,
+    RenderRequest, RenderedImage, StepSwitch,
+};
 use super::camera::{bounding_radius, clip_box_world};
 use super::jobs::JobControl;
 use super::state::{IntersectorChoice, KeepSide, RawLayoutState};
+use crate::scene::{AnyScene, GridData, SceneOptions, open_scene};
 
 /// Edge length of the embedded default dataset.
 pub const DEFAULT_SAMPLE_SIZE: usize = 64;
+
+/// Mesh steps kept after prefetching (the current one plus those ahead).
+const MESH_STEP_CACHE: usize = 4;
 
 /// The real library.
 #[derive(Debug, Default, Clone, Copy)]
@@ -127,48 +142,295 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
     }
 }
 
-/// A kd-tree scene; the intersector is switched in place (no rebuild) when a request asks
-/// for another one.
-struct GridPrepared {
-    scene: RwLock<AnyGridScene>,
+/// Where a mesh scene stands. The viewer refits meshes itself (through
+/// `TetData::scene_mut`) so that step data prefetched in the background is used; the
+/// `TetData`'s own step counter is not advanced.
+struct MeshTrack {
+    step: usize,
+    /// The scene holds positions other than the reference (step 0) ones.
+    moved: bool,
+    /// Prefetched steps: `(step, data)`.
+    cache: VecDeque<(usize, Arc<StepData>)>,
 }
 
-impl PreparedScene for GridPrepared {
+/// An opened scene of any kind behind a lock: renders take the read lock, step switches
+/// and intersector or normal changes the write lock (from jobs, never the UI thread).
+pub struct CorePrepared {
+    scene: RwLock<AnyScene>,
+    /// Reference point positions of a mesh (step 0).
+    reference_points: Vec<[f32; 3]>,
+    mesh: Mutex<MeshTrack>,
+    /// Last out-of-core status, returned while the scene is locked for writing.
+    lod: Mutex<Option<LodStatus>>,
+}
+
+#[allow(clippy::needless_pass_by_value)]
+fn poisoned<T>(_: T) -> String {
+    "the scene lock is poisoned (a render thread panicked)".to_string()
+}
+
+impl CorePrepared {
+    pub fn new(scene: AnyScene) -> Self {
+        let reference_points = scene
+            .as_tet()
+            .map(|t| t.loaded().mesh.points.clone())
+            .unwrap_or_default();
+        let step = scene.step();
+        Self {
+            scene: RwLock::new(scene),
+            reference_points,
+            mesh: Mutex::new(MeshTrack {
+                step,
+                moved: false,
+                cache: VecDeque::new(),
+            }),
+            lod: Mutex::new(None),
+        }
+    }
+
+    /// Read access to the scene (tests, summaries).
+    pub fn with_scene<R>(&self, f: impl FnOnce(&AnyScene) -> R) -> Result<R, String> {
+        Ok(f(&*self.scene.read().map_err(poisoned)?))
+    }
+
+    /// Switches the intersector and tet normals in place when the request asks for others.
+    fn apply_options(&self, request: &RenderRequest) -> Result<(), String> {
+        let want_isect = intersector(request.options.intersector);
+        let want_normals = if request.options.smooth_normals {
+            TetNormals::Smooth
+        } else {
+            TetNormals::Faceted
+        };
+        let up_to_date = {
+            let s = self.scene.read().map_err(poisoned)?;
+            match &*s {
+                AnyScene::Grid(g) => g.scene().intersector() == want_isect,
+                AnyScene::Ooc(o) => o.intersector() == want_isect,
+                AnyScene::Tet(t) => t.scene().normals() == want_normals,
+            }
+        };
+        if !up_to_date {
+            let mut s = self.scene.write().map_err(poisoned)?;
+            s.set_intersector(want_isect);
+            if let Some(t) = s.as_tet_mut() {
+                t.set_normals(want_normals);
+            }
+        }
+        Ok(())
+    }
+
+    fn load_mesh_step(&self, step: usize) -> Result<Arc<StepData>, String> {
+        if let Some(d) = self
+            .mesh
+            .lock()
+            .map_err(poisoned)?
+            .cache
+            .iter()
+            .find(|(s, _)| *s == step)
+            .map(|(_, d)| Arc::clone(d))
+        {
+            return Ok(d);
+        }
+        let data = {
+            let s = self.scene.read().map_err(poisoned)?;
+            let t = s.as_tet().ok_or("not a mesh")?;
+            let mesh = &t.loaded().mesh;
+            match t.series() {
+                _ if step == 0 => StepData {
+                    time: 0.0,
+                    positions: None,
+                    fields: mesh.fields.clone(),
+                },
+                Some(series) => series
+                    .load_step_data(step, mesh)
+                    .map_err(|e| e.to_string())?,
+                None => return Err(format!("time step {step}: not a time series")),
+            }
+        };
+        let data = Arc::new(data);
+        let mut track = self.mesh.lock().map_err(poisoned)?;
+        track.cache.retain(|(s, _)| *s != step);
+        if track.cache.len() >= MESH_STEP_CACHE {
+            track.cache.pop_front();
+        }
+        track.cache.push_back((step, Arc::clone(&data)));
+        Ok(data)
+    }
+
+    fn set_mesh_step(&self, step: usize) -> Result<StepSwitch, String> {
+        if self.mesh.lock().map_err(poisoned)?.step == step {
+            return Ok(StepSwitch::Unchanged);
+        }
+        let data = self.load_mesh_step(step)?;
+        let mut s = self.scene.write().map_err(poisoned)?;
+        let t = s.as_tet_mut().ok_or("not a mesh")?;
+        let field = t.field().to_owned();
+        let values = &data
+            .fields
+            .iter()
+            .find(|f| f.name == field)
+            .ok_or_else(|| format!("time step {step} has no point array \"{field}\""))?
+            .values;
+        let mut track = self.mesh.lock().map_err(poisoned)?;
+        let err = |e: volume_core::tet::TetError| format!("time step {step}: {e}");
+        // Values first (only the isoranges are refit), then positions if they changed.
+        t.scene_mut().refit_scalars(values).map_err(err)?;
+        match &data.positions {
+            Some(p) => {
+                t.scene_mut().refit_positions(p).map_err(err)?;
+                track.moved = true;
+            }
+            None if track.moved => {
+                t.scene_mut()
+                    .refit_positions(&self.reference_points)
+                    .map_err(err)?;
+                track.moved = false;
+            }
+            None => {}
+        }
+        track.step = step;
+        Ok(StepSwitch::Refit)
+    }
+}
+
+impl PreparedScene for CorePrepared {
     fn render(
         &self,
         request: &RenderRequest,
         cancel: &AtomicBool,
     ) -> Result<Option<RenderedImage>, String> {
-        let wanted = intersector(request.options.intersector);
-        let current = self
-            .scene
-            .read()
-            .map_err(|_| "the scene lock is poisoned".to_string())?
-            .intersector();
-        if current != wanted {
-            self.scene
-                .write()
-                .map_err(|_| "the scene lock is poisoned".to_string())?
-                .set_intersector(wanted);
-        }
+        self.apply_options(request)?;
         let camera = camera(request);
         camera.validate().map_err(|e| e.to_string())?;
         let settings = settings(request);
         settings.validate().map_err(|e| e.to_string())?;
-        let scene = self
-            .scene
-            .read()
-            .map_err(|_| "the scene lock is poisoned".to_string())?;
-        Ok(
-            render(&*scene, &camera, &settings, cancel).map(|f| RenderedImage {
-                width: f.width,
-                height: f.height,
-                rgba8: f.rgba8,
-                elapsed: f.elapsed,
-                rays: f.rays.primary,
-            }),
-        )
+        let scene = self.scene.read().map_err(poisoned)?;
+        let (frame, lod_level) = match &*scene {
+            AnyScene::Ooc(o) => match o.render_with_level(&camera, &settings, cancel) {
+                Some((f, level)) => (Some(f), Some(level)),
+                None => (None, None),
+            },
+            s => (s.render(&camera, &settings, cancel), None),
+        };
+        Ok(frame.map(|f| RenderedImage {
+            width: f.width,
+            height: f.height,
+            rgba8: f.rgba8,
+            elapsed: f.elapsed,
+            rays: f.rays.primary,
+            lod_level,
+        }))
     }
+
+    fn set_step(&self, step: usize, _control: &JobControl) -> Result<StepSwitch, String> {
+        let is_tet = self.scene.read().map_err(poisoned)?.as_tet().is_some();
+        if is_tet {
+            return self.set_mesh_step(step);
+        }
+        let mut s = self.scene.write().map_err(poisoned)?;
+        if s.step() == step {
+            return Ok(StepSwitch::Unchanged);
+        }
+        let before = s
+            .as_grid()
+            .map(|g| (g.scene().dims(), g.scene().voxel_type()));
+        s.set_step(step).map_err(|e| format!("{e:#}"))?;
+        // `update_volume` refits when dims and voxel type stay (a series checks both).
+        let after = s
+            .as_grid()
+            .map(|g| (g.scene().dims(), g.scene().voxel_type()));
+        Ok(if before == after {
+            StepSwitch::Refit
+        } else {
+            StepSwitch::Rebuilt
+        })
+    }
+
+    fn prefetch(&self, step: usize, _control: &JobControl) -> Result<(), String> {
+        let s = self.scene.read().map_err(poisoned)?;
+        match &*s {
+            // The series caches the loaded step; `set_step` then only refits.
+            AnyScene::Grid(g) => match g.series() {
+                Some(series) => series.step(step).map(|_| ()).map_err(|e| e.to_string()),
+                None => Ok(()),
+            },
+            AnyScene::Tet(_) => {
+                drop(s);
+                self.load_mesh_step(step).map(|_| ())
+            }
+            AnyScene::Ooc(_) => Ok(()),
+        }
+    }
+
+    fn lod_status(&self) -> Option<LodStatus> {
+        let mut cached = self.lod.lock().ok()?;
+        // Never wait for a writer: keep the last status while the scene is locked.
+        if let Ok(s) = self.scene.try_read() {
+            *cached = s.as_ooc().map(|o| {
+                let st = o.status();
+                LodStatus {
+                    loaded_levels: st.loaded_levels,
+                    level_count: st.level_count,
+                    resident_bytes: st.resident_bytes,
+                    finished: st.finished,
+                    budget_limited: st.budget_limited,
+                    error: st.error,
+                }
+            });
+        }
+        cached.clone()
+    }
+}
+
+/// What the panels show about a freshly opened scene (scans the values for the histogram;
+/// call from a job).
+pub fn loaded_data(
+    name: String,
+    path: Option<std::path::PathBuf>,
+    scene: AnyScene,
+) -> Result<LoadedData, String> {
+    let (lo, hi) = scene
+        .value_range()
+        .ok_or_else(|| format!("{name}: no finite data values"))?;
+    let (kind, dims, histogram) = match &scene {
+        AnyScene::Grid(g) => {
+            let v = g.volume();
+            let h = volume_core::dispatch_voxels!(&v.data, buf =>
+                Histogram::compute(buf.as_slice(), lo, hi, HISTOGRAM_BINS));
+            (DataKindLabel::Grid, v.dims(), Some(h))
+        }
+        AnyScene::Tet(t) => {
+            let h = t
+                .loaded()
+                .mesh
+                .field(t.field())
+                .map(|f| Histogram::compute(&f.values, lo, hi, HISTOGRAM_BINS));
+            (DataKindLabel::Tet, [0; 3], h)
+        }
+        AnyScene::Ooc(o) => {
+            let d = o.volume().meta().layout.dims();
+            (
+                DataKindLabel::OutOfCore,
+                d.map(|x| usize::try_from(x).unwrap_or(usize::MAX)),
+                None,
+            )
+        }
+    };
+    let times = (0..scene.step_count())
+        .map(|s| scene.time_value(s))
+        .collect();
+    Ok(LoadedData {
+        name,
+        path,
+        kind,
+        summary: scene.describe(),
+        dims,
+        bounds: scene.world_bounds(),
+        value_range: (lo, hi),
+        histogram,
+        times,
+        scene: Arc::new(CorePrepared::new(scene)),
+    })
 }
 
 fn raw_layout(state: &RawLayoutState) -> Result<formats::raw::RawLayout, String> {
@@ -188,49 +450,73 @@ fn raw_layout(state: &RawLayoutState) -> Result<formats::raw::RawLayout, String>
     })
 }
 
+fn scene_options(
+    raw: Option<&RawLayoutState>,
+    choices: OpenChoices,
+) -> Result<SceneOptions, String> {
+    Ok(SceneOptions {
+        open: formats::OpenOptions {
+            raw: raw.map(raw_layout).transpose()?,
+        },
+        intersector: intersector(choices.intersector),
+        normals: if choices.smooth_normals {
+            TetNormals::Smooth
+        } else {
+            TetNormals::Faceted
+        },
+        ..SceneOptions::default()
+    })
+}
+
 impl Backend for CoreBackend {
     fn open(
         &self,
         path: &Path,
         raw: Option<&RawLayoutState>,
+        choices: OpenChoices,
         _control: &JobControl,
-    ) -> Result<DataKind, String> {
-        let options = formats::OpenOptions {
-            raw: raw.map(raw_layout).transpose()?,
-        };
-        // FormatError names the file and the field or offset.
-        match formats::open(path, &options).map_err(|e| e.to_string())? {
-            formats::Dataset::Volume(v) => Ok(DataKind::Volume(Arc::new(v))),
-            formats::Dataset::Series(s) => Ok(DataKind::Series(Arc::new(s))),
-        }
+    ) -> Result<LoadedData, String> {
+        let options = scene_options(raw, choices)?;
+        // The error chain names the file and the field or offset.
+        let scene = open_scene(path, &options).map_err(|e| format!("{e:#}"))?;
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        loaded_data(name, Some(path.to_path_buf()), scene)
     }
 
-    fn default_dataset(&self, control: &JobControl) -> Result<(String, DataKind), String> {
-        let n = DEFAULT_SAMPLE_SIZE;
-        let done = std::sync::atomic::AtomicUsize::new(0);
-        let on_slice = || {
-            let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            control.set_progress(k as f32 / n as f32);
-        };
-        let v =
-            data_samples::marschner_lobb::generate_with_progress([n; 3], VoxelType::F32, &on_slice)
-                .map_err(|e| format!("generating the default sample: {e}"))?;
-        Ok((
-            format!("Marschner–Lobb {n}³ (embedded sample)"),
-            DataKind::Volume(Arc::new(v)),
-        ))
-    }
-
-    fn prepare(
+    fn default_dataset(
         &self,
-        volume: &RectilinearVolume,
-        choice: IntersectorChoice,
-        _control: &JobControl,
-    ) -> Result<Arc<dyn PreparedScene>, String> {
-        Ok(Arc::new(GridPrepared {
-            scene: RwLock::new(AnyGridScene::new(volume, intersector(choice))),
-        }))
+        choices: OpenChoices,
+        control: &JobControl,
+    ) -> Result<LoadedData, String> {
+        let (name, scene) = default_scene(choices, control)?;
+        loaded_data(name, None, scene)
     }
+}
+
+/// The embedded sample: Marschner–Lobb on the cube [-1, 1]³, `DEFAULT_SAMPLE_SIZE`³ f32.
+pub fn default_scene(
+    choices: OpenChoices,
+    control: &JobControl,
+) -> Result<(String, AnyScene), String> {
+    let n = DEFAULT_SAMPLE_SIZE;
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let on_slice = || {
+        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        control.set_progress(k as f32 / n as f32);
+    };
+    let v: RectilinearVolume =
+        data_samples::marschner_lobb::generate_with_progress([n; 3], VoxelType::F32, &on_slice)
+            .map_err(|e| format!("generating the default sample: {e}"))?;
+    let name = format!("Marschner–Lobb {n}³ (embedded sample)");
+    let scene = AnyScene::Grid(GridData::from_volume(
+        Path::new(&name),
+        v,
+        intersector(choices.intersector),
+    ));
+    Ok((name, scene))
 }
 
 #[cfg(test)]
@@ -254,12 +540,14 @@ mod tests {
             clip_planes: state.clip_planes.clone(),
             options: state.render,
             step: 0,
+            lod_levels: 0,
         }
     }
 
     fn sample() -> LoadedData {
-        let (name, kind) = CoreBackend.default_dataset(&JobControl::default()).unwrap();
-        LoadedData::new(name, None, kind).unwrap()
+        CoreBackend
+            .default_dataset(OpenChoices::default(), &JobControl::default())
+            .unwrap()
     }
 
     /// The Marschner–Lobb formula typed independently of data-samples.
@@ -276,9 +564,9 @@ mod tests {
         assert_eq!(data.dims, [DEFAULT_SAMPLE_SIZE; 3]);
         assert_eq!(data.bounds.min, Vec3::splat(-1.0));
         assert!((data.bounds.max - Vec3::splat(1.0)).abs().max_element() < 1e-6);
-        let DataKind::Volume(v) = &data.kind else {
-            panic!("a volume")
-        };
+        assert!(data.summary.contains("64x64x64 f32"), "{}", data.summary);
+        let (_, scene) = default_scene(OpenChoices::default(), &JobControl::default()).unwrap();
+        let v = scene.as_grid().unwrap().volume();
         let h = 2.0 / (DEFAULT_SAMPLE_SIZE - 1) as f64;
         for (i, j, k) in [(0, 0, 0), (10, 20, 30), (63, 31, 5)] {
             let want = ml(
@@ -289,7 +577,7 @@ mod tests {
             assert!((v.value_f64(i, j, k) - want).abs() < 1e-6);
         }
         assert_eq!(
-            data.histogram.counts.iter().sum::<u64>(),
+            data.histogram.as_ref().unwrap().counts.iter().sum::<u64>(),
             (DEFAULT_SAMPLE_SIZE as u64).pow(3)
         );
     }
@@ -358,12 +646,7 @@ mod tests {
     #[test]
     fn the_real_renderer_draws_the_sample() {
         let data = sample();
-        let DataKind::Volume(v) = &data.kind else {
-            panic!("a volume")
-        };
-        let scene = CoreBackend
-            .prepare(v, IntersectorChoice::Exact, &JobControl::default())
-            .unwrap();
+        let scene = Arc::clone(&data.scene);
         let mut state = ViewerState::default();
         state.surfaces.push(SurfaceState::new(0.5, 0));
         let cancel = AtomicBool::new(false);

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 use egui::{Color32, DragValue, Pos2, Rect, Sense, Slider, Stroke, Ui, Vec2};
 
-use super::backend::LoadedData;
+use super::backend::{DataKindLabel, LoadedData};
 use super::state::{
     ClipBoxState, ClipPlaneState, IntersectorChoice, KeepSide, RawLayoutState, SurfaceState,
     ViewerState,
@@ -107,10 +107,7 @@ pub fn data_ui(
     match data {
         Some(d) => {
             ui.label(egui::RichText::new(&d.name).strong());
-            ui.label(format!(
-                "{} × {} × {} {}",
-                d.dims[0], d.dims[1], d.dims[2], d.voxel_type
-            ));
+            ui.label(&d.summary);
             ui.label(format!(
                 "values {:.6} … {:.6}",
                 d.value_range.0, d.value_range.1
@@ -150,7 +147,16 @@ pub fn histogram_ui(
     let (rect, response) = ui.allocate_exact_size(size, Sense::hover());
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, ui.visuals().extreme_bg_color);
-    let counts = &data.histogram.counts;
+    let counts: &[u64] = data.histogram.as_ref().map_or(&[], |h| &h.counts);
+    if counts.is_empty() {
+        painter.text(
+            rect.center(),
+            egui::Align2::CENTER_CENTER,
+            "no histogram: the data is not resident (out-of-core)",
+            egui::FontId::proportional(11.0),
+            ui.visuals().weak_text_color(),
+        );
+    }
     let height = |c: u64| if log { (c as f32 + 1.0).ln() } else { c as f32 };
     let max = counts
         .iter()
@@ -316,18 +322,35 @@ pub fn clip_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>
     });
 }
 
-/// Intersector, transparency layers, shadows and light, background.
-pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState) {
+/// Intersector (grids) or normals (tet meshes), transparency layers, shadows and light,
+/// background.
+pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState, kind: Option<DataKindLabel>) {
     let o = &mut state.render;
-    egui::ComboBox::from_label("Intersector")
-        .selected_text(o.intersector.cli_name())
-        .show_ui(ui, |ui| {
-            for c in IntersectorChoice::ALL {
-                ui.selectable_value(&mut o.intersector, c, c.cli_name())
-                    .on_hover_text(c.note());
-            }
+    if kind == Some(DataKindLabel::Tet) {
+        ui.horizontal(|ui| {
+            ui.label("Normals");
+            ui.radio_value(&mut o.smooth_normals, false, "Faceted")
+                .on_hover_text("the isopolygon's plane: the data as computed");
+            ui.radio_value(&mut o.smooth_normals, true, "Smooth")
+                .on_hover_text("vertex gradients interpolated by M = N·V⁻¹ (thesis §8.3)");
         });
-    ui.label(egui::RichText::new(o.intersector.note()).small().weak());
+        let note = if o.smooth_normals {
+            "smooth: interpolated vertex gradients (thesis 004 §8.3)"
+        } else {
+            "faceted: each isopolygon's plane, the data as computed (default)"
+        };
+        ui.label(egui::RichText::new(note).small().weak());
+    } else {
+        egui::ComboBox::from_label("Intersector")
+            .selected_text(o.intersector.cli_name())
+            .show_ui(ui, |ui| {
+                for c in IntersectorChoice::ALL {
+                    ui.selectable_value(&mut o.intersector, c, c.cli_name())
+                        .on_hover_text(c.note());
+                }
+            });
+        ui.label(egui::RichText::new(o.intersector.note()).small().weak());
+    }
     ui.add(Slider::new(&mut o.max_layers, 1..=16).text("Transparency layers"));
     ui.checkbox(&mut o.shadows, "Shadows");
     ui.add(Slider::new(&mut o.light_azimuth_deg, -180.0..=180.0).text("Light azimuth °"));
@@ -416,7 +439,7 @@ pub fn time_ui(
             "step {} / {}  t = {:.4}",
             t.step,
             count - 1,
-            data.kind.time_value(t.step)
+            data.time_value(t.step)
         ));
         ui.checkbox(&mut t.looping, "Loop");
         ui.add(

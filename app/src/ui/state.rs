@@ -272,6 +272,9 @@ pub struct RenderOptions {
     pub light_elevation_deg: f32,
     /// Linear RGB in [0, 1].
     pub background: [f32; 3],
+    /// Tet meshes: normals interpolated from vertex gradients (thesis 004 §8.3) instead of
+    /// the isopolygon's plane (the default: the data as computed).
+    pub smooth_normals: bool,
 }
 
 impl Default for RenderOptions {
@@ -283,6 +286,7 @@ impl Default for RenderOptions {
             light_azimuth_deg: 0.0,
             light_elevation_deg: 0.0,
             background: [0.08, 0.08, 0.10],
+            smooth_normals: false,
         }
     }
 }
