@@ -618,8 +618,16 @@ pub fn write_isot<T: Voxel>(
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let tmp = tempfile::Builder::new()
-        .prefix(".isot-")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".isot-").suffix(".tmp");
+    // tempfile creates 0600 files; the finished file gets the mode of any new file
+    // (0666 minus the umask, as `File::create`), applied by the kernel at creation.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let tmp = builder
         .tempfile_in(dir)
         .map_err(|e| FormatError::io(path, e))?;
     let file = tmp.reopen().map_err(|e| FormatError::io(path, e))?;
@@ -902,5 +910,61 @@ mod tests {
         let b = ooc.visit_scene(Intersector::Exact, Trace(rays, iso));
         assert!(a.iter().filter(|h| h.is_some()).count() > 100);
         assert_eq!(a, b);
+    }
+
+    /// The finished file has the mode `File::create` gives (0666 minus the umask), not the
+    /// 0600 of a temporary file, and no temporary name is left behind.
+    #[cfg(unix)]
+    #[test]
+    fn output_mode_respects_the_umask() {
+        use std::os::unix::fs::PermissionsExt as _;
+        let dir = tempfile::tempdir().unwrap();
+        let (path, _) = write(dir.path(), 3);
+        let reference = dir.path().join("reference");
+        File::create(&reference).unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&path), mode(&reference));
+        assert_ne!(
+            mode(&path) & 0o044,
+            0,
+            "readable by others under a usual umask"
+        );
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
+    }
+
+    /// Slot offsets of a 2048×2048×1100 file (beyond 4 GiB) in 64-bit arithmetic, checked
+    /// against u128 arithmetic; the plan alone, nothing is written.
+    #[test]
+    fn slot_offsets_above_four_gib_do_not_wrap() {
+        let dims = [2048usize, 2048, 1100];
+        let meta = OocMeta {
+            grid: Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap(),
+            voxel_type: VoxelType::U8,
+            layout: TreeletLayout::new(dims.map(|d| d as u64), 9).unwrap(),
+            quantizer: Quantizer::for_type(VoxelType::U8, 0.0, 255.0),
+        };
+        let plans = plan_levels(&meta);
+        let last = plans.last().unwrap();
+        let end = (last.first_page + last.page_count) * PAGE;
+        assert!(end > 1 << 32, "{end}");
+        for (l, p) in plans.iter().enumerate() {
+            let i = p.treelet_count - 1;
+            let want = if p.slots_per_page > 0 {
+                (u128::from(p.first_page) + u128::from(i / p.slots_per_page)) * u128::from(PAGE)
+                    + u128::from(i % p.slots_per_page) * u128::from(p.slot_bytes)
+            } else {
+                (u128::from(p.first_page) + u128::from(i) * u128::from(p.slot_bytes.div_ceil(PAGE)))
+                    * u128::from(PAGE)
+            };
+            assert_eq!(u128::from(p.slot_offset(i)), want, "level {l}");
+            assert!(p.slot_offset(i) + p.slot_bytes <= (p.first_page + p.page_count) * PAGE);
+            // The largest record fits its slot.
+            assert!(meta.max_record_bytes(l) + 4 <= p.slot_bytes);
+        }
+        assert!(last.slot_offset(last.treelet_count - 1) > 1 << 32);
     }
 }
