@@ -3,6 +3,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod accuracy;
 pub mod bench;
 pub mod generate;
 pub mod info;
@@ -31,6 +32,9 @@ pub enum Command {
     Render(render::Args),
     /// Measure build time, memory and rays/s of the acceleration structures and intersectors.
     Bench(bench::Args),
+    /// Write docs/accuracy.md: speed and accuracy of every intersector against the f64
+    /// reference (Marschner-Lobb, phantom, extreme suite) with difference images.
+    Accuracy(accuracy::Args),
     /// Build the out-of-core treelet file (.isot) of a volume: LOD pyramid, merged min/max
     /// tree, 4 KiB pages with checksums.
     Preprocess(preprocess::Args),
@@ -43,6 +47,7 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Generate(a) => generate::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Accuracy(a) => accuracy::run(&a),
         Command::Preprocess(a) => preprocess::run(&a),
     }
 }

@@ -732,6 +732,95 @@ fn more_cases(cases: &mut Vec<Case>) {
     }
 }
 
+/// Inputs at the limit of `f32`, outside the suite's "0 missed, 0 false" requirement and
+/// reported separately in docs/accuracy.md, because the answer is decided below the
+/// resolution of the `f32` methods:
+/// - near-miss rays: corners ±1, rays along cell diagonals through the saddles, isovalue
+///   1e-5…1e-7 below the saddle value. Along even diagonals the field stays that far above
+///   the isovalue (a near miss the reference resolves; the exact method's touching band
+///   `64·ε·max|g|` ≈ 4e-6 counts the closer ones as touches, i.e. false hits), along odd
+///   diagonals it crosses twice, 2·sqrt(gap) apart;
+/// - rays with random unit directions aimed at iso-valued samples of integer data: they
+///   pass the sample ~1e-7 cell away, where a touch is decided by the rounding of the
+///   cell-local entry point (`f32` in the fast methods, `f64` in the reference).
+pub fn limit_cases() -> Vec<Case> {
+    let mut cases = Vec::new();
+    {
+        let mut rng = Lcg(0x11_3175);
+        let vol = volume([9, 9, 4], [0.0; 3], [1.0; 3], |i, j, _| {
+            if (i + j) % 2 == 0 { 1.0f32 } else { -1.0 }
+        });
+        for gap in [1e-5f32, 1e-6, 1e-7] {
+            let rays = (0..200)
+                .map(|_| {
+                    let m = rng.index(7) as f32 - 3.0;
+                    let z = rng.range(0.0, 3.0);
+                    let d = Vec3::new(1.0, 1.0, 0.0).normalize();
+                    Ray::new(Vec3::new(m - 2.0, -2.0, z), d)
+                })
+                .collect();
+            cases.push(Case {
+                name: format!("near-miss and near-double-root rays, gap {gap:.0e}"),
+                volume: vol.clone(),
+                isovalues: vec![-gap],
+                rays,
+            });
+        }
+    }
+    {
+        let mut rng = Lcg(0x116_1e55);
+        let dims = [13usize, 11, 9];
+        let vol = volume(dims, [0.0; 3], [1.0; 3], |i, j, k| {
+            if k == 4 || (i >= 8 && j >= 6) {
+                -2i16
+            } else {
+                ((i * 5 + j * 3 + k * 7) % 11) as i16 - 5
+            }
+        });
+        let (lo, hi) = bounds(&vol);
+        let rays = (0..400)
+            .map(|_| {
+                let p = Vec3::new(
+                    rng.index(dims[0]) as f32,
+                    rng.index(dims[1]) as f32,
+                    rng.index(dims[2]) as f32,
+                );
+                let d = rng.vec(-1.0, 1.0).normalize_or(Vec3::X);
+                Ray::new(p - d * (hi - lo).length(), d)
+            })
+            .collect();
+        cases.push(Case {
+            name: "i16, random unit rays aimed at (iso-valued) samples".into(),
+            volume: vol,
+            isovalues: vec![-2.0, 3.0],
+            rays,
+        });
+    }
+    cases
+}
+
+/// Scores every intersector on every case of `cases` (one kd-tree per case).
+pub fn run_cases(
+    cases: &[Case],
+    intersectors: &[Intersector],
+) -> Vec<(String, Vec<AccuracyReport>)> {
+    cases
+        .iter()
+        .map(|case| {
+            let scene = AnyGridScene::with_config(
+                &case.volume,
+                Intersector::Exact,
+                KdTreeConfig::default(),
+            );
+            let reports = intersectors
+                .iter()
+                .map(|&i| compare(&scene, &case.rays, &case.isovalues, i))
+                .collect();
+            (case.name.clone(), reports)
+        })
+        .collect()
+}
+
 /// Scores every intersector on every case of the extreme suite.
 pub fn run_extreme_suite(intersectors: &[Intersector]) -> Vec<(String, Vec<AccuracyReport>)> {
     extreme_suite()
