@@ -10,6 +10,8 @@
 //! - [`blobs`]: moving and merging Gaussian blobs, a 20-step time series (lazy or eager).
 //! - [`tets`]: tetrahedral meshes of a ball, a shell and a torus (a structured grid split
 //!   into tets) with analytic point fields and a moving Gaussian series.
+//! - [`sparse_blobs`]: a 2048×2048×1100 `u8` volume of analytic blobs as a sparse file
+//!   (more than 2³² voxels, the out-of-core test of issue 5).
 //! - [`sampling`]: the parallel field sampler and the [`ValueMap`] that stores a field's
 //!   natural values in any voxel type.
 //!
@@ -22,6 +24,7 @@ pub mod blobs;
 pub mod marschner_lobb;
 pub mod phantom;
 pub mod sampling;
+pub mod sparse_blobs;
 pub mod tets;
 
 pub use sampling::ValueMap;
