@@ -516,8 +516,11 @@ mod tests {
 
     #[test]
     fn generator_names_parse_and_errors_list_them() {
-        assert_eq!(parse_generator("phantom"), Ok(Generator::Phantom));
-        let e = parse_generator("spheres").unwrap_err();
+        assert_eq!(
+            parse_name("phantom"),
+            Ok(GenName::Volume(Generator::Phantom))
+        );
+        let e = parse_name("spheres").unwrap_err();
         assert!(
             e.contains("nested-spheres") && e.contains("marschner-lobb") && e.contains("tet-ball"),
             "{e}"
