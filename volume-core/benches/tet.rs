@@ -75,22 +75,6 @@ fn ball_mesh(n: usize) -> TetMesh {
         ([-0.3, 0.35, 0.2], 0.8, 0.2),
         ([0.0, -0.45, -0.3], 0.6, 0.3),
     ];
-    let centre = [0.013, -0.021, 0.008];
-    let coord = |i: usize| -1.0 + 2.0 * i as f64 / n as f64;
-    let np = n + 1;
-    let gid = |i: usize, j: usize, k: usize| i + np * (j + np * k);
-    let mut kept = Vec::new();
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                let c = [i, j, k].map(|a| coord(a) + 1.0 / n as f64 - 0.0);
-                let d2: f64 = (0..3).map(|a| (c[a] - centre[a]).powi(2)).sum();
-                if d2.sqrt() <= 0.9 {
-                    kept.push([i, j, k]);
-                }
-            }
-        }
-    }
     const CORNERS: [[usize; 3]; 8] = [
         [0, 0, 0],
         [1, 0, 0],
@@ -101,6 +85,22 @@ fn ball_mesh(n: usize) -> TetMesh {
         [1, 1, 1],
         [0, 1, 1],
     ];
+    let centre = [0.013, -0.021, 0.008];
+    let coord = |i: usize| -1.0 + 2.0 * i as f64 / n as f64;
+    let np = n + 1;
+    let gid = |i: usize, j: usize, k: usize| i + np * (j + np * k);
+    let mut kept = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let c = [i, j, k].map(|a| coord(a) + 1.0 / n as f64);
+                let d2: f64 = (0..3).map(|a| (c[a] - centre[a]).powi(2)).sum();
+                if d2.sqrt() <= 0.9 {
+                    kept.push([i, j, k]);
+                }
+            }
+        }
+    }
     let mut remap = vec![u32::MAX; np * np * np];
     for &[i, j, k] in &kept {
         for [di, dj, dk] in CORNERS {
@@ -281,7 +281,10 @@ fn probe(mode: &str) {
         }
         _ => {}
     }
-    for (what, iso) in [("no surface (renderer only)", 100.0f32), ("isovalue 0.7", 0.7)] {
+    for (what, iso) in [
+        ("no surface (renderer only)", 100.0f32),
+        ("isovalue 0.7", 0.7),
+    ] {
         let s = settings(iso, 1024, true, false);
         let wall = best_ms(10, || {
             black_box(render(&scene, &cam, &s, &go).unwrap());

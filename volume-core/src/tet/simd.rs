@@ -148,14 +148,18 @@ fn edge(a: V8, b: V8) -> f32x8 {
     if zero == 0 {
         return e;
     }
-    let (ax, ay, bx, by) = (a.x.to_array(), a.y.to_array(), b.x.to_array(), b.y.to_array());
+    let (ax, ay, bx, by) = (
+        a.x.to_array(),
+        a.y.to_array(),
+        b.x.to_array(),
+        b.y.to_array(),
+    );
     let mut out = e.to_array();
     let mut m = zero;
     while m != 0 {
         let l = m.trailing_zeros() as usize;
         m &= m - 1;
-        out[l] = (f64::from(ax[l]) * f64::from(by[l]) - f64::from(ay[l]) * f64::from(bx[l]))
-            as f32;
+        out[l] = (f64::from(ax[l]) * f64::from(by[l]) - f64::from(ay[l]) * f64::from(bx[l])) as f32;
     }
     f32x8::new(out)
 }
@@ -227,7 +231,10 @@ mod tests {
 
     impl Rng {
         fn f(&mut self) -> f32 {
-            self.0 = self.0.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
             (self.0 >> 40) as f32 / (1u64 << 24) as f32
         }
         fn range(&mut self, lo: f32, hi: f32) -> f32 {
@@ -317,7 +324,11 @@ mod tests {
             } else {
                 std::array::from_fn(|_| rng.v3(-1.0, 1.0).extend(rng.range(0.0, 1.0)))
             };
-            let c = if integer { 0.5 + 0.5 * (trial % 3) as f32 } else { 0.5 };
+            let c = if integer {
+                0.5 + 0.5 * (trial % 3) as f32
+            } else {
+                0.5
+            };
             let Some(poly) = mt::extract(&v, &[0, 1, 2, 3], c) else {
                 continue;
             };
@@ -363,6 +374,9 @@ mod tests {
                 }
             }
         }
-        assert!(uniform > 1000 && hits > 3000, "{uniform} blocks, {hits} hits");
+        assert!(
+            uniform > 1000 && hits > 3000,
+            "{uniform} blocks, {hits} hits"
+        );
     }
 }

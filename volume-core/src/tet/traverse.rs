@@ -40,8 +40,8 @@ use wide::f32x8;
 
 use super::bvh::{BvhNode, MAX_DEPTH};
 use super::mt::{self, RaySpace};
-use super::simd::{LANES, RayBlock, poly8, slab8};
 use super::scene::TetScene;
+use super::simd::{LANES, RayBlock, poly8, slab8};
 use crate::math::{Ray, float::gamma_f32};
 use crate::render::Stats;
 
@@ -145,8 +145,12 @@ impl Frustum {
     fn from_blocks(blocks: &[RayBlock], t1: &[f32x8]) -> Self {
         let b0 = &blocks[0];
         // Rows: origin xyz, reciprocal xyz, range end, unused.
-        let mut lo = [b0.o[0], b0.o[1], b0.o[2], b0.inv[0], b0.inv[1], b0.inv[2], b0.t0, b0.t0];
-        let mut hi = [b0.o[0], b0.o[1], b0.o[2], b0.inv[0], b0.inv[1], b0.inv[2], t1[0], t1[0]];
+        let mut lo = [
+            b0.o[0], b0.o[1], b0.o[2], b0.inv[0], b0.inv[1], b0.inv[2], b0.t0, b0.t0,
+        ];
+        let mut hi = [
+            b0.o[0], b0.o[1], b0.o[2], b0.inv[0], b0.inv[1], b0.inv[2], t1[0], t1[0],
+        ];
         let mut bad_o = 0u32;
         let mut bad_i = [0u32; 3];
         for (b, t) in blocks.iter().zip(t1) {
@@ -155,8 +159,8 @@ impl Frustum {
                 hi[a] = hi[a].max(b.o[a]);
                 lo[3 + a] = lo[3 + a].min(b.inv[a]);
                 hi[3 + a] = hi[3 + a].max(b.inv[a]);
-                bad_o |= !b.o[a].is_finite().to_bitmask();
-                bad_i[a] |= !b.inv[a].is_finite().to_bitmask();
+                bad_o |= !b.o[a].is_finite().to_bitmask() & 0xff;
+                bad_i[a] |= !b.inv[a].is_finite().to_bitmask() & 0xff;
             }
             lo[6] = lo[6].min(b.t0);
             hi[6] = hi[6].max(*t);
@@ -180,12 +184,10 @@ impl Frustum {
             t0: lo[6],
             t1: hi[6],
         };
-        for a in 0..3 {
+        for (a, bad) in bad_i.into_iter().enumerate() {
             // Zero direction components have infinite reciprocals; mixed signs would make
             // the reciprocal interval span infinity.
-            f.axis[a] = bad_o & 0xff == 0
-                && bad_i[a] & 0xff == 0
-                && !(f.imin[a] < 0.0 && f.imax[a] > 0.0);
+            f.axis[a] = bad_o == 0 && bad == 0 && !(f.imin[a] < 0.0 && f.imax[a] > 0.0);
         }
         if f.t0.is_nan() || f.t1.is_nan() {
             f.t0 = f32::NEG_INFINITY;
@@ -583,7 +585,9 @@ impl TetScene {
                 }
                 if n.is_leaf() {
                     stats.leaf();
-                    self.leaf_large(n, rays, t_min, blocks, best, first, &fr, groups, out, iso, stats);
+                    self.leaf_large(
+                        n, rays, t_min, blocks, best, first, &fr, groups, out, iso, stats,
+                    );
                     break 'visit;
                 }
                 // Implicit descent: geometric tests only at bifurcation nodes.
