@@ -69,7 +69,7 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         let sec = section(&md, name);
         for m in Intersector::ALL {
             let cells = row(sec, m.name());
-            assert_eq!(cells.len(), 8, "{name} {m}: {cells:?}");
+            assert_eq!(cells.len(), 9, "{name} {m}: {cells:?}");
             let mrays: f64 = cells[1].parse().unwrap();
             assert!(mrays > 0.0, "{name} {m}: {cells:?}");
         }
@@ -102,7 +102,7 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         .iter()
         .position(|&m| m == Intersector::Exact)
         .unwrap();
-    let (mut missed, mut false_hits, mut ref_hits) = (0u64, 0u64, 0u64);
+    let (mut missed, mut false_hits, mut ref_hits, mut far) = (0u64, 0u64, 0u64, 0u64);
     for (case, j) in suite.iter().zip(cases) {
         assert_eq!(j["name"].as_str().unwrap(), case.name);
         let scene =
@@ -115,6 +115,15 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
             .iter()
             .zip(&truth.hits)
             .filter(|(e, t)| e.is_none() && t.is_some())
+            .count() as u64;
+        let case_far = exact
+            .hits
+            .iter()
+            .zip(&truth.hits)
+            .filter(|(e, t)| {
+                e.zip(**t)
+                    .is_some_and(|(e, t)| (e.t_cells - t.t_cells).abs() > 0.5)
+            })
             .count() as u64;
         let case_false = exact
             .hits
@@ -137,6 +146,8 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
             "{}",
             case.name
         );
+        assert_eq!(row["far_hits"].as_u64(), Some(case_far), "{}", case.name);
+        far += case_far;
         assert!(md.contains(&format!("| {} |", case.name)), "{}", case.name);
         missed += case_missed;
         false_hits += case_false;
@@ -148,16 +159,17 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
     // computed above, which must be zero (issue 3).
     let totals = section(&md, "Extreme suite (all cases)");
     for m in Intersector::ALL {
-        assert_eq!(row(totals, m.name()).len(), 11, "{m}");
+        assert_eq!(row(totals, m.name()).len(), 12, "{m}");
     }
     let exact_row = row(totals, "exact");
     assert_eq!(exact_row[3], ref_hits.to_string(), "{exact_row:?}");
     assert_eq!(exact_row[4], missed.to_string(), "{exact_row:?}");
     assert_eq!(exact_row[5], false_hits.to_string(), "{exact_row:?}");
+    assert_eq!(exact_row[9], far.to_string(), "{exact_row:?}");
     assert_eq!(
-        (missed, false_hits),
-        (0, 0),
-        "exact: missed and false hits on the suite"
+        (missed, false_hits, far),
+        (0, 0, 0),
+        "exact: missed, false and far hits on the suite"
     );
     // The approximate methods do miss on the suite (it is hard enough to tell them apart).
     let linear_missed: u64 = row(totals, "linear")[4].parse().unwrap();

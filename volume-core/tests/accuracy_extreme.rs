@@ -34,6 +34,7 @@ fn exact_intersector_has_no_missed_or_false_hits_on_the_extreme_suite() {
         assert_eq!(exact.missed, 0, "{name}: exact missed hits: {exact:?}");
         assert_eq!(exact.false_hits, 0, "{name}: exact false hits: {exact:?}");
         assert_eq!(exact.wrong_surface, 0, "{name}: {exact:?}");
+        assert_eq!(exact.far_hits, 0, "{name}: {exact:?}");
         assert!(exact.max_abs_dt_cells < 1e-2, "{name}: {exact:?}");
         let reference = &reports[1];
         assert_eq!((reference.missed, reference.false_hits), (0, 0));

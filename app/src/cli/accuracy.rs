@@ -79,6 +79,8 @@ pub struct Row {
     pub missed: u64,
     pub false_hits: u64,
     pub wrong_surface: u64,
+    /// Both hit, more than half a cell apart (a different crossing).
+    pub far_hits: u64,
     /// % of reference hits.
     pub missed_percent: f64,
     /// % of rays.
@@ -102,6 +104,7 @@ impl Row {
             missed: r.missed,
             false_hits: r.false_hits,
             wrong_surface: r.wrong_surface,
+            far_hits: r.far_hits,
             missed_percent: r.missed_percent(),
             false_percent: r.false_percent(),
             mean_abs_dt_cells: r.mean_abs_dt_cells,
@@ -441,6 +444,7 @@ fn measure_suite() -> (Vec<SuiteCase>, Vec<Row>) {
                 mean_abs_dt_cells: 0.0,
                 max_abs_dt_cells: 0.0,
                 wrong_surface: 0,
+                far_hits: 0,
                 seconds: 0.0,
             };
             let mut sum_dt = 0.0;
@@ -452,6 +456,7 @@ fn measure_suite() -> (Vec<SuiteCase>, Vec<Row>) {
                 total.missed += r.missed;
                 total.false_hits += r.false_hits;
                 total.wrong_surface += r.wrong_surface;
+                total.far_hits += r.far_hits;
                 total.seconds += r.seconds;
                 total.max_abs_dt_cells = total.max_abs_dt_cells.max(r.max_abs_dt_cells);
                 let n = r.reference_hits - r.missed;
@@ -551,7 +556,10 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
          cell edge on a uniform axis), over the rays both hit. **% missed**: reference hits \
          the method does not find, in % of reference hits. **% false**: method hits where \
          the reference has none, in % of rays. **wrong surf.**: both hit, but different \
-         isosurfaces first.\n"
+         isosurfaces first. **far hits**: both hit, more than half a cell apart, i.e. \
+         different crossings: the method skipped the reference's first crossing (a missed \
+         hit in disguise) or found one before it (a false hit in disguise); they are \
+         included in the |Δt| columns.\n"
     );
     let _ = writeln!(
         s,
@@ -591,13 +599,16 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
     );
     let _ = writeln!(
         s,
-        "| intersector | Mrays/s (1 thread) | rays | reference hits | missed | false | % missed | % false | wrong surf. | mean \\|Δt\\| (cells) | max \\|Δt\\| (cells) |"
+        "| intersector | Mrays/s (1 thread) | rays | reference hits | missed | false | % missed | % false | wrong surf. | far hits | mean \\|Δt\\| (cells) | max \\|Δt\\| (cells) |"
     );
-    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        s,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
     for r in &doc.suite_totals {
         let _ = writeln!(
             s,
-            "| {} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {:.2} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.intersector,
             r.mrays_per_second,
             r.rays,
@@ -607,13 +618,14 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
             pct(r.missed_percent),
             pct(r.false_percent),
             r.wrong_surface,
+            r.far_hits,
             sci(r.mean_abs_dt_cells),
             sci(r.max_abs_dt_cells)
         );
     }
     let _ = writeln!(
         s,
-        "\nPer case: `missed / false · max |Δt|` (cells) for each intersector.\n"
+        "\nPer case: `missed / false / far · max |Δt|` (cells) for each intersector.\n"
     );
     case_table(s, &doc.suite);
     let _ = writeln!(s, "## Limits of f32 (outside the suite's requirement)\n");
@@ -642,9 +654,10 @@ fn case_table(s: &mut String, cases: &[SuiteCase]) {
             .iter()
             .map(|r| {
                 format!(
-                    "{} / {} · {}",
+                    "{} / {} / {} · {}",
                     r.missed,
                     r.false_hits,
+                    r.far_hits,
                     sci(r.max_abs_dt_cells)
                 )
             })
@@ -674,9 +687,9 @@ pub fn format_markdown(doc: &AccuracyDoc, legend: &str) -> String {
         );
         let _ = writeln!(
             s,
-            "| intersector | Mrays/s | mean \\|Δt\\| (cells) | max \\|Δt\\| (cells) | % missed | % false | wrong surf. | difference image |"
+            "| intersector | Mrays/s | mean \\|Δt\\| (cells) | max \\|Δt\\| (cells) | % missed | % false | wrong surf. | far hits | difference image |"
         );
-        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---|");
+        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---|");
         for r in &d.rows {
             let image = r.image.as_ref().map_or_else(
                 || "(the truth)".to_string(),
@@ -691,7 +704,7 @@ pub fn format_markdown(doc: &AccuracyDoc, legend: &str) -> String {
             );
             let _ = writeln!(
                 s,
-                "| {} | {:.2} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {:.2} | {} | {} | {} | {} | {} | {} | {} |",
                 r.intersector,
                 r.mrays_per_second,
                 sci(r.mean_abs_dt_cells),
@@ -699,6 +712,7 @@ pub fn format_markdown(doc: &AccuracyDoc, legend: &str) -> String {
                 pct(r.missed_percent),
                 pct(r.false_percent),
                 r.wrong_surface,
+                r.far_hits,
                 image
             );
         }

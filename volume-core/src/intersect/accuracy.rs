@@ -42,6 +42,10 @@ pub struct Case {
     pub rays: Vec<Ray>,
 }
 
+/// `|Δt|` (cells) above which two first hits are different crossings, not one crossing
+/// placed differently.
+pub const FAR_HIT_CELLS: f64 = 0.5;
+
 /// Scores of one intersector on one set of rays.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct AccuracyReport {
@@ -56,6 +60,9 @@ pub struct AccuracyReport {
     pub max_abs_dt_cells: f64,
     /// Rays where both hit but on different surfaces.
     pub wrong_surface: u64,
+    /// Rays where both hit but more than [`FAR_HIT_CELLS`] apart: the method found a
+    /// different crossing (it missed the reference's first hit, or hit before it).
+    pub far_hits: u64,
     /// Time of the method's own traversal (not the reference's).
     pub seconds: f64,
 }
@@ -183,6 +190,7 @@ pub fn score(got: &Traced, truth: &Traced) -> (AccuracyReport, Vec<RayOutcome>) 
         mean_abs_dt_cells: 0.0,
         max_abs_dt_cells: 0.0,
         wrong_surface: 0,
+        far_hits: 0,
         seconds: got.seconds,
     };
     let mut both = 0u64;
@@ -198,6 +206,9 @@ pub fn score(got: &Traced, truth: &Traced) -> (AccuracyReport, Vec<RayOutcome>) 
                 let dt = (g.t_cells - t.t_cells).abs();
                 sum += dt;
                 r.max_abs_dt_cells = r.max_abs_dt_cells.max(dt);
+                if dt > FAR_HIT_CELLS {
+                    r.far_hits += 1;
+                }
                 let same_surface = g.surface == t.surface;
                 if !same_surface {
                     r.wrong_surface += 1;
