@@ -314,6 +314,74 @@ pub fn normal_at<T: Voxel>(
     cell: [usize; 3],
     uvw: Vec3,
 ) -> Option<Vec3> {
+    if let Some(n) = normal_interior_f32(frame, voxels, dims, cell, uvw) {
+        return Some(n);
+    }
+    normal_general(frame, voxels, dims, cell, uvw)
+}
+
+/// The common case of [`normal_at`] in `f32` with straight-line loads: a cell at least one
+/// sample away from every border, a voxel type `f32` holds well (not 32-bit integers or
+/// `f64`), and a finite, nonzero result. Every corner then takes the central difference,
+/// exactly as in [`normal_general`]; anything else (borders, void or huge values, a
+/// vanishing gradient) returns `None` and takes the general path.
+#[inline]
+fn normal_interior_f32<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> Option<Vec3> {
+    if matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32)
+        || (0..3).any(|a| cell[a] == 0 || cell[a] + 3 > dims[a])
+    {
+        return None;
+    }
+    let (sx, sy) = (1, dims[0]);
+    let sz = dims[0] * dims[1];
+    let base = cell[0] + sy * cell[1] + sz * cell[2];
+    // The 4×4×4 block minus its 8 corners and 24 edge samples: the 32 samples that the
+    // central differences at the cell's 8 corners read. Index checks once, up front.
+    let lo = base - sx - sy - sz;
+    let hi = base + 2 * (sx + sy + sz);
+    let vox = &voxels[lo..=hi];
+    let at = |o: usize| vox[o - lo].to_f32();
+    // Inverse central-difference widths per axis for the cell's two sample planes.
+    let inv_w = |a: usize| -> [f32; 2] {
+        let p = &frame.pos[a];
+        let c = cell[a];
+        [1.0 / (p[c + 1] - p[c - 1]), 1.0 / (p[c + 2] - p[c])]
+    };
+    let (wx, wy, wz) = (inv_w(0), inv_w(1), inv_w(2));
+    let mut grad = Vec3::ZERO;
+    for c in 0..8 {
+        let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+        let o = base + bx * sx + by * sy + bz * sz;
+        let g = Vec3::new(
+            (at(o + sx) - at(o - sx)) * wx[bx],
+            (at(o + sy) - at(o - sy)) * wy[by],
+            (at(o + sz) - at(o - sz)) * wz[bz],
+        );
+        let w = (if bx == 1 { uvw.x } else { 1.0 - uvw.x })
+            * (if by == 1 { uvw.y } else { 1.0 - uvw.y })
+            * (if bz == 1 { uvw.z } else { 1.0 - uvw.z });
+        grad += g * w;
+    }
+    if !grad.is_finite() || grad == Vec3::ZERO {
+        return None;
+    }
+    frame.world_normal(grad.as_dvec3())
+}
+
+/// [`normal_at`] for every case, in `f64` (see the module docs).
+fn normal_general<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> Option<Vec3> {
     let value =
         |i: usize, j: usize, k: usize| -> f64 { voxels[i + dims[0] * (j + dims[1] * k)].to_f64() };
     let uvw = uvw.as_dvec3();
