@@ -365,6 +365,77 @@ pub fn intersect_cell<T: Voxel, C: CellIntersector, S: crate::render::Stats>(
         return None;
     }
     let (lo, hi) = frame.cell_box(cell);
+    intersect_prepared_cell(
+        &PreparedCell {
+            corners,
+            min,
+            max,
+            lo,
+            hi,
+            cell,
+        },
+        ray,
+        t_lo,
+        t_hi,
+        isos,
+        intersector,
+        stats,
+    )
+}
+
+/// A cell whose corners, value range and box were loaded once, to be tested against several
+/// rays (the rays of a packet that reach the same leaf).
+#[derive(Debug, Clone, Copy)]
+pub struct PreparedCell<T: Voxel> {
+    pub corners: [T; 8],
+    pub min: T,
+    pub max: T,
+    pub lo: Vec3,
+    pub hi: Vec3,
+    pub cell: [usize; 3],
+}
+
+impl<T: Voxel> PreparedCell<T> {
+    /// The cell's data, or `None` when no active isovalue can lie in it (void cells
+    /// included), i.e. when [`intersect_cell`] returns `None` for every ray.
+    #[inline(always)]
+    pub fn load(
+        frame: &TraversalFrame,
+        voxels: &[T],
+        dims: [usize; 3],
+        cell: [usize; 3],
+        isos: &IsoSet<T>,
+    ) -> Option<Self> {
+        let corners = cell_corners(voxels, dims, cell);
+        let (min, max) = corner_range(&corners)?;
+        if !isos.any_in(min, max) {
+            return None;
+        }
+        let (lo, hi) = frame.cell_box(cell);
+        Some(Self {
+            corners,
+            min,
+            max,
+            lo,
+            hi,
+            cell,
+        })
+    }
+}
+
+/// The rest of [`intersect_cell`] for a loaded cell (bit-identical results; no leaf is
+/// counted here).
+#[inline(always)]
+pub fn intersect_prepared_cell<T: Voxel, C: CellIntersector, S: crate::render::Stats>(
+    pc: &PreparedCell<T>,
+    ray: &LocalRay,
+    t_lo: f32,
+    t_hi: f32,
+    isos: &IsoSet<T>,
+    intersector: C,
+    stats: &mut S,
+) -> Option<CellHit> {
+    let (lo, hi, cell) = (pc.lo, pc.hi, pc.cell);
     let (t_near, t_far) = frame::slab(ray, lo, hi, t_lo, t_hi)?;
     if !(hi.cmpgt(lo).all()) {
         return None; // zero-width cell (explicit coordinates closer than f32 resolution)
@@ -378,9 +449,9 @@ pub fn intersect_cell<T: Voxel, C: CellIntersector, S: crate::render::Stats>(
         t_far,
     };
     let mut best: Option<CellHit> = None;
-    isos.for_each_in(min, max, |iso, surface| {
+    isos.for_each_in(pc.min, pc.max, |iso, surface| {
         stats.intersection();
-        if let Some(s) = intersector.first_root(&corners, iso, &seg) {
+        if let Some(s) = intersector.first_root(&pc.corners, iso, &seg) {
             let t = seg.t_at(s).clamp(t_near, t_far);
             if best.is_none_or(|b| t < b.t) {
                 best = Some(CellHit { t, surface, cell });

@@ -8,7 +8,9 @@
 //!   `2·idx[a] + 1`. Min/max live in one flat array per level holding only the *real*
 //!   nodes (`ceil(cells / extent)` per axis); virtual nodes lie beyond the volume bounds,
 //!   which every ray is clipped to, and their split positions are `+inf`, so they are never
-//!   stored nor visited.
+//!   stored nor visited. Each level's array is row-major with the *parent's* split axis
+//!   varying fastest, so two siblings are adjacent: a traversal step reads both children's
+//!   ranges from one cache line and culls them before descending or pushing.
 //! - **Per-level split tables**: the split of node `idx[a]` at a level is the sample
 //!   coordinate of cell boundary `idx[a]·extent + extent/2` (traversal units, see
 //!   [`crate::intersect::frame`]). A spacing edit only rebuilds these tables (§7.6).
@@ -73,6 +75,14 @@ struct Level {
     unit: [u32; 3],
     /// Real children along `axis` (the next level's count).
     child_count: u32,
+    /// Address strides of this level's min/max array (the parent's split axis has stride 1,
+    /// so siblings are adjacent).
+    stride: [usize; 3],
+    /// Axes from fastest to slowest varying address.
+    order: [usize; 3],
+    /// The next level's `stride` and `range_offset` (read by the descent step).
+    child_stride: [usize; 3],
+    child_offset: usize,
 }
 
 /// The implicit min/max kd-tree (see the module docs).
@@ -132,6 +142,20 @@ impl<T: Voxel> KdTree<T> {
                         axis = a;
                     }
                 }
+                // The axis the parent split varies fastest (x at the root).
+                let fast = levels.last().map_or(0, |p: &Level| p.axis);
+                let mut order = [fast, 0, 0];
+                let mut n = 1;
+                for b in 0..3 {
+                    if b != fast {
+                        order[n] = b;
+                        n += 1;
+                    }
+                }
+                let mut stride = [0; 3];
+                stride[order[0]] = 1;
+                stride[order[1]] = count[order[0]];
+                stride[order[2]] = count[order[0]] * count[order[1]];
                 levels.push(Level {
                     axis,
                     extent,
@@ -140,6 +164,10 @@ impl<T: Voxel> KdTree<T> {
                     split_offset,
                     unit: [0, 1, 2].map(|b| u32::from(b == axis)),
                     child_count: 0,
+                    stride,
+                    order,
+                    child_stride: [0; 3],
+                    child_offset: 0,
                 });
                 if extent == [1, 1, 1] {
                     break;
@@ -152,6 +180,8 @@ impl<T: Voxel> KdTree<T> {
         for l in 1..levels.len() {
             let a = levels[l - 1].axis;
             levels[l - 1].child_count = levels[l].count[a] as u32;
+            levels[l - 1].child_stride = levels[l].stride;
+            levels[l - 1].child_offset = levels[l].range_offset;
         }
         let depth = levels.len().saturating_sub(1);
         let stored = depth.saturating_sub(config.unstored_levels);
@@ -233,18 +263,21 @@ impl<T: Voxel> KdTree<T> {
         );
         let level = &mut self.ranges[start..end];
         let [lo, hi] = b;
-        // One row (fixed j, k) per task.
+        // One row (along the level's fastest axis) per task.
+        let [f, m, s] = lv.order;
         level
-            .par_chunks_mut(lv.count[0])
+            .par_chunks_mut(lv.count[f])
             .enumerate()
             .for_each(|(row, out)| {
-                let j = row % lv.count[1];
-                let k = row / lv.count[1];
-                if j < lo[1] || j > hi[1] || k < lo[2] || k > hi[2] {
+                let mut n = [0; 3];
+                n[m] = row % lv.count[m];
+                n[s] = row / lv.count[m];
+                if n[m] < lo[m] || n[m] > hi[m] || n[s] < lo[s] || n[s] > hi[s] {
                     return;
                 }
-                for (i, o) in out.iter_mut().enumerate().take(hi[0] + 1).skip(lo[0]) {
-                    *o = node_range_from_cells(voxels, dims, cells, lv.extent, [i, j, k]);
+                for (i, o) in out.iter_mut().enumerate().take(hi[f] + 1).skip(lo[f]) {
+                    n[f] = i;
+                    *o = node_range_from_cells(voxels, dims, cells, lv.extent, n);
                 }
             });
         let (mut lo, mut hi) = (lo, hi);
@@ -257,17 +290,20 @@ impl<T: Voxel> KdTree<T> {
             let (head, tail) = self.ranges.split_at_mut(child.range_offset);
             let parents = &mut head[parent.range_offset..];
             let children = &tail[..child.count.iter().product::<usize>()];
+            let [f, m, s] = parent.order;
             parents
-                .par_chunks_mut(parent.count[0])
+                .par_chunks_mut(parent.count[f])
                 .enumerate()
                 .for_each(|(row, out)| {
-                    let j = row % parent.count[1];
-                    let k = row / parent.count[1];
-                    if j < lo[1] || j > hi[1] || k < lo[2] || k > hi[2] {
+                    let mut n = [0; 3];
+                    n[m] = row % parent.count[m];
+                    n[s] = row / parent.count[m];
+                    if n[m] < lo[m] || n[m] > hi[m] || n[s] < lo[s] || n[s] > hi[s] {
                         return;
                     }
-                    for (i, o) in out.iter_mut().enumerate().take(hi[0] + 1).skip(lo[0]) {
-                        let mut c = [i, j, k];
+                    for (i, o) in out.iter_mut().enumerate().take(hi[f] + 1).skip(lo[f]) {
+                        n[f] = i;
+                        let mut c = n;
                         c[a] *= 2;
                         let mut r = children[child_addr(&child, c)];
                         c[a] += 1;
@@ -383,6 +419,11 @@ impl<T: Voxel> KdTree<T> {
         let mut node = [0u32; 3];
         let mut level = 0usize;
         let (mut ta, mut tb) = (t0, t1);
+        // Ranges are tested one level ahead (a child before it is entered or pushed), so
+        // only the root is tested here.
+        if self.stored > 0 && !isos.any_in(self.ranges[0][0], self.ranges[0][1]) {
+            return None;
+        }
         'outer: loop {
             loop {
                 if level == self.depth {
@@ -405,14 +446,6 @@ impl<T: Voxel> KdTree<T> {
                     break;
                 }
                 let lv = &self.levels[level];
-                if level < self.stored {
-                    let r = self.ranges[lv.range_offset
-                        + node[0] as usize
-                        + lv.count[0] * (node[1] as usize + lv.count[1] * node[2] as usize)];
-                    if !isos.any_in(r[0], r[1]) {
-                        break;
-                    }
-                }
                 stats.node();
                 let a = lv.axis;
                 // One-hot axis arithmetic keeps the node in registers (indexing a `[u32; 3]`
@@ -424,19 +457,36 @@ impl<T: Voxel> KdTree<T> {
                 let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
                 let right_real = 2 * na + 1 < lv.child_count;
                 level += 1;
+                // A child is live if it is real and (on a stored level) its range holds an
+                // isovalue; siblings are adjacent in the level array.
+                let (left_live, right_live) = if level < self.stored {
+                    let i = lv.child_offset + addr(lv.child_stride, left);
+                    let l = self.ranges[i];
+                    let live_l = isos.any_in(l[0], l[1]);
+                    let live_r = right_real && {
+                        let r = self.ranges[i + 1];
+                        isos.any_in(r[0], r[1])
+                    };
+                    (live_l, live_r)
+                } else {
+                    (true, right_real)
+                };
                 let o = ray.origin[a];
                 let d = ray.dir[a];
                 if d == 0.0 {
                     if o < split {
+                        if !left_live {
+                            break;
+                        }
                         node = left;
                     } else if o > split {
-                        if !right_real {
+                        if !right_live {
                             break;
                         }
                         node = right;
                     } else {
                         // In the split plane: both sides (seed 000 §5).
-                        if right_real {
+                        if right_live {
                             stack[sp] = Entry {
                                 node: right,
                                 level: level as u32,
@@ -445,28 +495,31 @@ impl<T: Voxel> KdTree<T> {
                             };
                             sp += 1;
                         }
+                        if !left_live {
+                            break;
+                        }
                         node = left;
                     }
                     continue;
                 }
                 let ts = (split - o) * ray.inv_dir[a];
-                let (near, far, near_real, far_real) = if d > 0.0 {
-                    (left, right, true, right_real)
+                let (near, far, near_live, far_live) = if d > 0.0 {
+                    (left, right, left_live, right_live)
                 } else {
-                    (right, left, right_real, true)
+                    (right, left, right_live, left_live)
                 };
                 if ts > tb {
-                    if !near_real {
+                    if !near_live {
                         break;
                     }
                     node = near;
                 } else if ts < ta {
-                    if !far_real {
+                    if !far_live {
                         break;
                     }
                     node = far;
                 } else {
-                    if far_real {
+                    if far_live {
                         stack[sp] = Entry {
                             node: far,
                             level: level as u32,
@@ -475,7 +528,7 @@ impl<T: Voxel> KdTree<T> {
                         };
                         sp += 1;
                     }
-                    if !near_real {
+                    if !near_live {
                         break;
                     }
                     node = near;
@@ -507,7 +560,13 @@ impl<T: Voxel> KdTree<T> {
 
 #[inline(always)]
 fn child_addr(l: &Level, c: [usize; 3]) -> usize {
-    c[0] + l.count[0] * (c[1] + l.count[1] * c[2])
+    addr(l.stride, [c[0] as u32, c[1] as u32, c[2] as u32])
+}
+
+/// Address of node `n` in a level array with strides `s`.
+#[inline(always)]
+fn addr(s: [usize; 3], n: [u32; 3]) -> usize {
+    n[0] as usize * s[0] + n[1] as usize * s[1] + n[2] as usize * s[2]
 }
 
 #[inline(always)]

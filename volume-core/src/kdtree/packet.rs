@@ -5,15 +5,16 @@
 //!
 //! A packet descends to one child when every active ray does, else to both; each ray keeps
 //! its own `[t_near, t_far]` lane, computed with exactly the single-ray formulas, and leaves
-//! run the same scalar cell test per active ray, so packet results equal single-ray results
-//! (tested). Packets need every ray to share the sign of each direction component and have
+//! run the same scalar cell test per active ray (the cell's corners, range and box loaded
+//! once per packet), so packet results equal single-ray results (tested). Packets need every ray to share the sign of each direction component and have
 //! no zero component; [`crate::grid_scene::GridScene`] traces other groups one by one.
 
 use wide::f32x8;
 
-use super::{INLINE_STACK, KdTree};
+use super::{INLINE_STACK, KdTree, addr};
 use crate::intersect::{
-    CellHit, CellIntersector, IsoSet, LocalRay, TraversalFrame, intersect_cell,
+    CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, TraversalFrame,
+    intersect_prepared_cell,
 };
 use crate::render::Stats;
 use crate::voxel::Voxel;
@@ -104,6 +105,10 @@ impl<T: Voxel> KdTree<T> {
         let mut sp = 0usize;
         let mut node = [0u32; 3];
         let mut level = 0usize;
+        // Children are culled before they are entered or pushed; only the root here.
+        if self.stored > 0 && !isos.any_in(self.ranges[0][0], self.ranges[0][1]) {
+            return;
+        }
         'outer: loop {
             loop {
                 let active = tn.simd_le(tf).to_bitmask();
@@ -112,16 +117,19 @@ impl<T: Voxel> KdTree<T> {
                 }
                 if level == self.depth {
                     let cell = node.map(|x| x as usize);
+                    for _ in 0..active.count_ones() {
+                        stats.leaf();
+                    }
+                    let Some(pc) = PreparedCell::load(frame, voxels, self.dims, cell, isos) else {
+                        break;
+                    };
                     let mut bits = active;
                     while bits != 0 {
                         let i = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
-                        if let Some(h) = intersect_cell(
-                            frame,
-                            voxels,
-                            self.dims,
+                        if let Some(h) = intersect_prepared_cell(
+                            &pc,
                             &rays[i],
-                            cell,
                             t0[i],
                             t1[i],
                             isos,
@@ -137,14 +145,6 @@ impl<T: Voxel> KdTree<T> {
                     break;
                 }
                 let lv = &self.levels[level];
-                if level < self.stored {
-                    let r = self.ranges[lv.range_offset
-                        + node[0] as usize
-                        + lv.count[0] * (node[1] as usize + lv.count[1] * node[2] as usize)];
-                    if !isos.any_in(r[0], r[1]) {
-                        break;
-                    }
-                }
                 stats.node();
                 let a = lv.axis;
                 let u = lv.unit;
@@ -154,11 +154,23 @@ impl<T: Voxel> KdTree<T> {
                 let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
                 let right_real = 2 * na + 1 < lv.child_count;
                 level += 1;
+                let (left_live, right_live) = if level < self.stored {
+                    let i = lv.child_offset + addr(lv.child_stride, left);
+                    let l = self.ranges[i];
+                    let live_l = isos.any_in(l[0], l[1]);
+                    let live_r = right_real && {
+                        let r = self.ranges[i + 1];
+                        isos.any_in(r[0], r[1])
+                    };
+                    (live_l, live_r)
+                } else {
+                    (true, right_real)
+                };
                 let ts = (f32x8::splat(split) - org[a]) * inv[a];
                 let (near, far, near_real, far_real) = if dir_pos[a] {
-                    (left, right, true, right_real)
+                    (left, right, left_live, right_live)
                 } else {
-                    (right, left, right_real, true)
+                    (right, left, right_live, left_live)
                 };
                 let beyond = ts.simd_gt(tf).to_bitmask();
                 let before = ts.simd_lt(tn).to_bitmask();
