@@ -4,6 +4,11 @@
 //!
 //! `cargo bench -p volume-core --bench kdtree` (criterion); a summary with rays/s and
 //! memory ratios is printed first (rows for docs/benchmarks.md).
+//!
+//! `KDBENCH=render cargo bench -p volume-core --bench kdtree` instead times whole frames of
+//! the renderer (what `isoscope bench` measures: packets, single rays and the DDA in the
+//! same run, Blinn–Phong shading included) on the CT-like volume at 1024² and on
+//! Marschner–Lobb 64³…512³ at 512² (`KDBENCH_ML=64,512` picks the sizes), then exits.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -15,7 +20,9 @@ use volume_core::grid_scene::GridScene;
 use volume_core::intersect::Intersector;
 use volume_core::kdtree::KdTreeConfig;
 use volume_core::math::Ray;
-use volume_core::render::{CountStats, IsoScene, NoStats, Stats};
+use volume_core::render::{
+    Camera, CountStats, IsoScene, NoStats, RenderSettings, Stats, Surface, render,
+};
 use volume_core::{Grid, Voxel, VoxelBuffer};
 
 /// A CT-like head: air, soft tissue with texture, a bone shell, and inner structures.
@@ -236,7 +243,120 @@ fn summary() {
     }
 }
 
+/// Median seconds per rendered frame (after one warm-up frame) and the frame's hit count.
+fn render_seconds<S: IsoScene>(
+    scene: &S,
+    camera: &Camera,
+    settings: &RenderSettings,
+    frames: usize,
+) -> f64 {
+    let go = std::sync::atomic::AtomicBool::new(false);
+    black_box(render(scene, camera, settings, &go));
+    median_seconds(
+        || {
+            black_box(render(scene, camera, settings, &go));
+        },
+        frames,
+    )
+}
+
+fn render_settings(size: u32, iso: f32, packets: bool) -> RenderSettings {
+    RenderSettings {
+        width: size,
+        height: size,
+        surfaces: vec![Surface::new(iso, [0.9, 0.8, 0.7])],
+        packets,
+        ..RenderSettings::default()
+    }
+}
+
+/// Whole-frame throughput of the renderer (see the module docs), one row per scene.
+fn render_summary() {
+    let frames: usize = std::env::var("KDBENCH_FRAMES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    println!(
+        "| scene | size | kd packet Mrays/s | kd single Mrays/s | DDA Mrays/s | packet / DDA | single / DDA | tree/data |"
+    );
+    // KDBENCH_ONLY=packet skips the single-ray and DDA frames (for profiling).
+    let only_packet = std::env::var("KDBENCH_ONLY").as_deref() == Ok("packet");
+    let row = |name: &str,
+               size: u32,
+               scene: &dyn Fn(&RenderSettings) -> f64,
+               iso: f32,
+               dda: &dyn Fn(&RenderSettings) -> f64,
+               ratio: f64| {
+        let rays = f64::from(size) * f64::from(size);
+        let pk = scene(&render_settings(size, iso, true));
+        if only_packet {
+            println!(
+                "| {name} | {size}² | {:.2} | | | | | {ratio:.3} |",
+                rays / pk / 1e6
+            );
+            return pk;
+        }
+        let sg = scene(&render_settings(size, iso, false));
+        let dd = dda(&render_settings(size, iso, false));
+        println!(
+            "| {name} | {size}² | {:.2} | {:.2} | {:.3} | {:.1}× | {:.1}× | {ratio:.3} |",
+            rays / pk / 1e6,
+            rays / sg / 1e6,
+            rays / dd / 1e6,
+            dd / pk,
+            dd / sg,
+        );
+        pk
+    };
+    let dims = [256, 256, 110];
+    let grid = Grid::uniform(dims, [0.0; 3], [0.9, 0.9, 1.5]).unwrap();
+    let ct = GridScene::new(
+        &grid,
+        VoxelBuffer::from_vec(ct_like(dims)),
+        Intersector::Exact,
+        KdTreeConfig::default(),
+    )
+    .unwrap();
+    let cam = Camera::orbit(&ct.world_bounds(), 30.0, 20.0, 40.0);
+    row(
+        "CT-like i16 256×256×110",
+        1024,
+        &|s| render_seconds(&ct, &cam, s, frames),
+        300.0,
+        &|s| render_seconds(&ct.dda(), &cam, s, 1),
+        ct.memory_ratio(),
+    );
+    let ml_sizes: Vec<usize> = std::env::var("KDBENCH_ML")
+        .unwrap_or_else(|_| "64,256".into())
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .collect();
+    let mut first = None;
+    for n in ml_sizes {
+        let scene = scene_of(
+            [n; 3],
+            marschner_lobb(n),
+            KdTreeConfig::default().unstored_levels,
+        );
+        let cam = Camera::orbit(&scene.world_bounds(), 30.0, 20.0, 40.0);
+        let pk = row(
+            &format!("ML {n}³ f32"),
+            512,
+            &|s| render_seconds(&scene, &cam, s, frames),
+            0.5,
+            &|s| render_seconds(&scene.dda(), &cam, s, 1),
+            scene.memory_ratio(),
+        );
+        let base = *first.get_or_insert(pk);
+        println!("  ML {n}³ packet frame / first ML frame: {:.2}×", pk / base);
+    }
+}
+
 fn bench(c: &mut Criterion) {
+    if std::env::var("KDBENCH").as_deref() == Ok("render") {
+        render_summary();
+        std::process::exit(0);
+    }
     summary();
     let dims = [256, 256, 110];
     let scene = scene_of(dims, ct_like(dims), KdTreeConfig::default().unstored_levels);
