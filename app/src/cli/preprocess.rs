@@ -3,7 +3,9 @@
 //!
 //! The input is opened like every other command (`formats::open`, memory-mapped) and never
 //! written; the output is written to a temporary name next to it and renamed when complete.
-//! A progress bar counts treelets; the summary reports input throughput.
+//! The build streams (see `volume_core::ooc::build`): memory stays bounded for inputs
+//! larger than RAM. A progress bar counts MB read over the two passes with the current
+//! throughput; the summary reports input throughput and the peak anonymous memory.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -84,28 +86,92 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Levels::Count(n) => TreeletLayout::with_levels(dims, n),
     }
     .with_context(|| format!("{}: cannot cut into treelets", args.input.display()))?;
-    let total = layout.treelet_count();
     let levels = layout.level_count();
     let height = layout.treelet_height();
-    let bar = Progress::bar(total, "preprocess: treelets");
+    let input_bytes = volume.data.size_bytes() as u64;
+    // The build reads the input twice (pass 1: value range + streamed LOD pyramid; pass 2:
+    // finest treelets); the bar counts MB read over both passes.
+    let voxel_bytes = volume.data.voxel_type().size_bytes() as u64;
+    let bar = Progress::bar(2 * input_bytes.div_ceil(1 << 20), "preprocess");
     let start = Instant::now();
+    let mut meter = Meter::new(start);
     let report =
-        formats::treelet::write_isot_volume(&args.output, volume, layout, &mut |done, _| {
-            bar.inc(done.saturating_sub(bar.position()));
+        formats::treelet::write_isot_volume(&args.output, volume, layout, &mut |done, total| {
+            let mb = done * voxel_bytes >> 20;
+            bar.inc(mb.saturating_sub(bar.position()));
+            if let Some(msg) = meter.tick(done * voxel_bytes, total * voxel_bytes / 2) {
+                bar.set_message(msg);
+            }
         })?;
     bar.finish();
+    meter.sample_memory();
     let secs = start.elapsed().as_secs_f64().max(1e-9);
-    let input_bytes = volume.data.size_bytes() as f64;
     let out_bytes = std::fs::metadata(&args.output).map_or(0, |m| m.len());
     println!(
-        "{}: {} treelets in {levels} levels (height {height}), {:.1} MB written, {:.2} s, {:.1} MB/s input",
+        "{}: {} treelets in {levels} levels (height {height}), {:.1} MB written, {:.2} s, \
+         {:.1} MB/s input, peak anonymous memory {:.1} MB (sampled)",
         args.output.display(),
         report.treelets,
         out_bytes as f64 / 1e6,
         secs,
-        input_bytes / 1e6 / secs
+        input_bytes as f64 / 1e6 / secs,
+        meter.peak_anon_bytes as f64 / 1e6,
     );
     Ok(())
+}
+
+/// Throughput and memory for the progress message, refreshed at most twice a second.
+struct Meter {
+    start: Instant,
+    last: Instant,
+    peak_anon_bytes: u64,
+}
+
+impl Meter {
+    fn new(start: Instant) -> Self {
+        let mut m = Self {
+            start,
+            last: start,
+            peak_anon_bytes: 0,
+        };
+        m.sample_memory();
+        m
+    }
+
+    /// Anonymous resident memory (`RssAnon` of `/proc/self/status`, Linux): what the build
+    /// itself holds, without the input and output file pages the kernel can drop.
+    fn sample_memory(&mut self) {
+        let anon = std::fs::read_to_string("/proc/self/status")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find_map(|l| l.strip_prefix("RssAnon:"))
+                    .and_then(|r| r.split_whitespace().next()?.parse::<u64>().ok())
+            })
+            .map_or(0, |kb| kb * 1024);
+        self.peak_anon_bytes = self.peak_anon_bytes.max(anon);
+    }
+
+    /// `read` bytes of `2 × input` so far: a message when it is time for a new one.
+    fn tick(&mut self, read: u64, input: u64) -> Option<String> {
+        let now = Instant::now();
+        if now.duration_since(self.last).as_secs_f64() < 0.5 {
+            return None;
+        }
+        self.last = now;
+        self.sample_memory();
+        let secs = now.duration_since(self.start).as_secs_f64().max(1e-9);
+        let pass = if read < input {
+            "1/2 range+LOD"
+        } else {
+            "2/2 treelets"
+        };
+        Some(format!(
+            "preprocess pass {pass}: {:.0} MB/s input (both passes), {:.0} MB anon",
+            read as f64 / 2.0 / 1e6 / secs,
+            self.peak_anon_bytes as f64 / 1e6
+        ))
+    }
 }
 
 #[cfg(test)]
