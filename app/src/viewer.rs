@@ -344,10 +344,8 @@ impl ViewerApp {
         }
         // Out-of-core: poll the loader (never blocks); a new level changes the request.
         self.lod = self.data.as_ref().and_then(|d| d.scene.lod_status());
-        if let Some(l) = &self.lod {
-            if !l.finished {
-                ctx.request_repaint_after(LOD_POLL);
-            }
+        if self.lod.as_ref().is_some_and(|l| !l.finished) {
+            ctx.request_repaint_after(LOD_POLL);
         }
     }
 
@@ -640,7 +638,7 @@ impl ViewerApp {
                 self.state.files.clear();
                 self.start_load(None, None);
             }
-            Command::OpenFiles(files) => self.open_files(files),
+            Command::OpenFiles(files) => self.open_files(&files),
             Command::OpenRaw(path, layout) => {
                 self.state.raw_layout = Some(layout.clone());
                 if !self.state.files.contains(&path) {
@@ -744,8 +742,8 @@ impl ViewerApp {
     }
 
     /// Several files of one kind and shape open as a time series (see [`group_files`]).
-    fn open_files(&mut self, files: Vec<PathBuf>) {
-        match group_files(&files) {
+    fn open_files(&mut self, files: &[PathBuf]) {
+        match group_files(files) {
             FileGroup::Single(p) => {
                 self.state.files = vec![p.clone()];
                 self.active_file = 0;
