@@ -25,11 +25,18 @@
 //! skip whole sub-frusta that miss, so a node or polygon much smaller than the packet costs
 //! a few group tests instead of a scan over 256 rays.
 //!
-//! Packets of at most 4 rays run the *standard* SIMD-style packet traversal instead (every
-//! ray tested at every node, descend if any hits): the 2×2 baseline of Table 8.4.
+//! The rays are held as 8-wide SoA blocks ([`super::simd`]): the first-active search tests
+//! 8 rays per step and each isopolygon is tested against 8 rays at once, with results
+//! bit-identical to the scalar tests. A packet whose root isorange holds no isovalue, or
+//! whose frustum misses the root box, returns before any per-ray setup.
+//!
+//! Packets of at most 4 rays run the *standard* packet traversal instead (every ray tested
+//! at every node with the scalar slab test, descend if any hits; one extraction per tet for
+//! the packet): the 2×2 baseline of Table 8.4.
 //!
 //! ## Statistics
-//! `box_test` counts individual ray–box tests (an interval frustum test counts as one),
+//! `box_test` counts individual ray–box tests (an interval frustum test counts as one, an
+//! 8-wide block test as the number of rays it tests),
 //! `intersection` ray–isopolygon tests, `extraction` isopolygon extractions, `node` and
 //! `leaf` visits.
 
