@@ -110,7 +110,7 @@ fn info_and_bench_report_levels_and_memory() {
         std::fs::metadata(&isot).unwrap().len()
     );
     let [lo, hi] = [0, 1].map(|i| v["value_range"][i].as_f64().unwrap());
-    assert!(lo >= 0.0 && lo < 0.1 && hi > 1.6, "{lo} {hi}");
+    assert!((0.0..0.1).contains(&lo) && hi > 1.6, "{lo} {hi}");
 
     let json = ok(&[
         "bench",

@@ -86,7 +86,7 @@ fn info_counts_tets_points_arrays_and_bounds() {
     assert_eq!(d["name"], "distance");
     let [lo, hi] = [0, 1].map(|i| d["value_range"][i].as_f64().unwrap());
     assert!(
-        lo >= 0.0 && lo < 0.2 && hi > BALL_RADIUS && hi < 1.2,
+        (0.0..0.2).contains(&lo) && hi > BALL_RADIUS && hi < 1.2,
         "{lo} {hi}"
     );
     assert_eq!(v["time_steps"], 1);
