@@ -159,11 +159,11 @@ fn more_than_two_to_the_32_voxels_preprocess_and_render_at_the_right_positions()
             events
                 .lock()
                 .unwrap()
-                .push((start.elapsed().as_secs_f64(), *p))
+                .push((start.elapsed().as_secs_f64(), *p));
         });
     }
     vol.set_isovalues(&[ISO]);
-    assert!(vol.wait_until_finished(Duration::from_secs(1800)));
+    assert!(vol.wait_until_finished(Duration::from_mins(30)));
     assert_eq!(vol.error(), None);
     let progress = vol.progress();
     assert!(!progress.budget_limited);

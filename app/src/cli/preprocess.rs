@@ -97,7 +97,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut meter = Meter::new(start);
     let report =
         formats::treelet::write_isot_volume(&args.output, volume, layout, &mut |done, total| {
-            let mb = done * voxel_bytes >> 20;
+            let mb = (done * voxel_bytes) >> 20;
             bar.inc(mb.saturating_sub(bar.position()));
             if let Some(msg) = meter.tick(done * voxel_bytes, total * voxel_bytes / 2) {
                 bar.set_message(msg);
