@@ -19,7 +19,6 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::{Context as _, bail};
 use glam::Vec3;
-use volume_core::RectilinearVolume;
 use volume_core::grid_scene::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
@@ -152,73 +151,6 @@ pub struct Args {
     pub mesh: MeshArgs,
     #[command(flatten)]
     pub ooc: OocArgs,
-}
-
-/// Opens `file` and returns step `step` (0 when `None`) of it.
-pub fn load_volume(
-    file: &Path,
-    open: &OpenArgs,
-    step: Option<usize>,
-) -> anyhow::Result<RectilinearVolume> {
-    let options = open.open_options()?;
-    let dataset = {
-        let _spinner = Progress::spinner(format!("opening {}", file.display()));
-        formats::open(file, &options)?
-    };
-    match dataset {
-        formats::Dataset::Volume(v) => {
-            if let Some(s) = step.filter(|&s| s != 0) {
-                bail!(
-                    "--step {s}: {} is a single volume, not a time series",
-                    file.display()
-                );
-            }
-            Ok(v)
-        }
-        formats::Dataset::Series(series) => {
-            let s = step.unwrap_or(0);
-            if s >= series.step_count() {
-                bail!(
-                    "--step {s}: {} has {} time steps (0..{})",
-                    file.display(),
-                    series.step_count(),
-                    series.step_count() - 1
-                );
-            }
-            series
-                .step(s)
-                .with_context(|| format!("loading time step {s} of {}", file.display()))
-        }
-    }
-}
-
-/// The middle of the finite value range (the default isovalue).
-pub fn middle_isovalue(volume: &RectilinearVolume) -> anyhow::Result<f32> {
-    let stats = volume.value_stats();
-    let Some((lo, hi)) = stats.finite_range else {
-        bail!("the volume has no finite values, so there is no isosurface to show");
-    };
-    Ok((0.5 * (lo + hi)) as f32)
-}
-
-/// Surfaces from `--iso` arguments (palette colours where none is given), or the default.
-pub fn surfaces_from(
-    specs: &[IsoSpec],
-    volume: &RectilinearVolume,
-) -> anyhow::Result<Vec<Surface>> {
-    if specs.is_empty() {
-        return Ok(vec![Surface::new(middle_isovalue(volume)?, PALETTE[0])]);
-    }
-    Ok(specs
-        .iter()
-        .enumerate()
-        .map(|(i, s)| Surface {
-            isovalue: s.value,
-            color: s.color.unwrap_or(PALETTE[i % PALETTE.len()]),
-            opacity: s.opacity,
-            visible: true,
-        })
-        .collect())
 }
 
 /// Surfaces from `--iso` arguments, or one at the middle of the scene's value range.
