@@ -50,6 +50,9 @@ use crate::voxel::Voxel;
 pub struct ResidentTreelet<T: Voxel> {
     rec: TreeletRecord<T>,
     frame: TraversalFrame,
+    /// The last frame ([`OocScene`] stamp) that entered this treelet; kept only for
+    /// treelets of demand-paged levels (least-recently-used eviction).
+    last_used: AtomicU64,
 }
 
 impl<T: Voxel> ResidentTreelet<T> {
@@ -66,7 +69,10 @@ type LevelMap<T> = HashMap<u64, Arc<ResidentTreelet<T>>>;
 /// What one frame renders with: the published levels (the bit table).
 #[derive(Debug)]
 struct Snapshot<T: Voxel> {
+    /// Complete levels first; levels from `complete` on are demand-paged (only the
+    /// treelets the frames asked for, within the budget).
     levels: Vec<Arc<LevelMap<T>>>,
+    complete: usize,
     resident_bytes: u64,
 }
 
@@ -145,6 +151,23 @@ struct State<T: Voxel> {
     finished: bool,
     budget_limited: bool,
     error: Option<OocError>,
+    /// The budget stopped the sweep: the levels from `snapshot.complete` on are paged in on
+    /// demand (treelets that frames missed) with least-recently-used eviction.
+    demand: bool,
+    /// A frame recorded misses since the last demand round.
+    miss_pending: bool,
+    /// A demand round is running.
+    demand_busy: bool,
+}
+
+/// Slots of the lossy miss table render threads write (a collision drops a miss; the next
+/// frame reports it again).
+const MISS_SLOTS: usize = 4096;
+/// Most treelets one demand round loads before it publishes.
+const DEMAND_BATCH: usize = 1024;
+
+fn miss_key(level: usize, index: u64) -> u64 {
+    ((level as u64) << 56) | index
 }
 
 struct Shared<T: Voxel> {
@@ -162,6 +185,12 @@ struct Shared<T: Voxel> {
     level_fetched: AtomicU64,
     level_needed: AtomicU64,
     listener: Mutex<Option<Listener>>,
+    /// Stamp of the newest frame ([`OocVolume::scene`] increments it).
+    frame_clock: AtomicU64,
+    /// `miss_key + 1` of demand-level treelets frames wanted and did not find (0: empty).
+    misses: Box<[AtomicU64]>,
+    missed: AtomicBool,
+    evictions: AtomicU64,
 }
 
 /// An out-of-core volume: storage, loader thread and published levels.
@@ -202,7 +231,25 @@ impl<T: Voxel> Shared<T> {
                 })
                 .collect()
         });
-        Ok(ResidentTreelet { rec, frame })
+        Ok(ResidentTreelet {
+            rec,
+            frame,
+            last_used: AtomicU64::new(self.frame_clock.load(Ordering::Acquire)),
+        })
+    }
+
+    /// Records (lossily, lock-free) that a frame wanted treelet `(level, index)`.
+    #[inline]
+    fn record_miss(&self, level: usize, index: u64) {
+        let key = miss_key(level, index) + 1;
+        let slot = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 52) as usize % MISS_SLOTS;
+        let s = &self.misses[slot];
+        if s.load(Ordering::Relaxed) != key {
+            s.store(key, Ordering::Relaxed);
+        }
+        if !self.missed.load(Ordering::Relaxed) {
+            self.missed.store(true, Ordering::Release);
+        }
     }
 
     /// Indices of level `l + 1` treelets below the passing nodes of `map` (level `l`).
@@ -252,7 +299,7 @@ impl<T: Voxel> Shared<T> {
         LoadProgress {
             generation: self.generation.load(Ordering::Acquire),
             request: self.request.load(Ordering::Acquire),
-            loaded_levels: st.snapshot.levels.len(),
+            loaded_levels: st.snapshot.complete,
             level_count: self.meta.layout.level_count(),
             level_fetched: self.level_fetched.load(Ordering::Acquire),
             level_needed: self.level_needed.load(Ordering::Acquire),
@@ -272,8 +319,9 @@ impl<T: Voxel> Shared<T> {
         }
     }
 
-    /// Makes `levels` the snapshot of the next frames (the renderer's "loaded LODs").
-    fn publish(&self, request: u64, levels: &[Arc<LevelMap<T>>], bytes: u64) {
+    /// Makes `levels` the snapshot of the next frames (the renderer's "loaded LODs"); the
+    /// first `complete` are complete levels, the others demand-paged.
+    fn publish(&self, request: u64, levels: &[Arc<LevelMap<T>>], complete: usize, bytes: u64) {
         let progress = {
             let mut st = self.state.lock().expect("loader state");
             if self.request.load(Ordering::Acquire) != request {
@@ -281,6 +329,7 @@ impl<T: Voxel> Shared<T> {
             }
             st.snapshot = Arc::new(Snapshot {
                 levels: levels.to_vec(),
+                complete,
                 resident_bytes: bytes,
             });
             self.generation.fetch_add(1, Ordering::AcqRel);
@@ -301,7 +350,7 @@ impl<T: Voxel> Shared<T> {
         let n = self.meta.layout.level_count();
         let mut levels = vec![old.levels[0].clone()];
         let mut bytes: u64 = levels[0].values().map(|t| t.bytes()).sum();
-        self.publish(request, &levels, bytes);
+        self.publish(request, &levels, 1, bytes);
         for l in 1..n {
             let needed = if queries.is_empty() && !all {
                 Vec::new()
@@ -322,36 +371,136 @@ impl<T: Voxel> Shared<T> {
                     Some(t) => t.clone(),
                     None => Arc::new(self.load(l, idx)?),
                 };
-                bytes += t.bytes();
-                if bytes > self.options.budget_bytes {
+                if bytes + t.bytes() > self.options.budget_bytes {
+                    // Level `l` does not fit: keep what does and page the rest of this
+                    // level and the finer ones in as frames ask for them.
+                    let complete = levels.len();
+                    levels.push(Arc::new(map));
+                    levels.extend((l + 1..n).map(|_| Arc::new(LevelMap::new())));
+                    self.publish(request, &levels, complete, bytes);
                     return Ok(true);
                 }
+                bytes += t.bytes();
                 map.insert(idx, t);
                 self.level_fetched.fetch_add(1, Ordering::AcqRel);
             }
             levels.push(Arc::new(map));
-            self.publish(request, &levels, bytes);
+            self.publish(request, &levels, levels.len(), bytes);
         }
         Ok(false)
     }
 
+    /// One demand round: loads the treelets frames missed on the demand-paged levels,
+    /// evicting the least recently used ones (never those of the newest frame) to stay
+    /// within the budget, and publishes the result. Returns `Ok(())` also when the budget
+    /// is full of treelets the newest frame used (those misses stay at the coarser level).
+    fn demand_round(&self, request: u64, old: &Snapshot<T>) -> Result<(), OocError> {
+        let complete = old.complete;
+        let n = old.levels.len();
+        let mut wanted: Vec<(usize, u64)> = self
+            .misses
+            .iter()
+            .filter_map(|s| s.swap(0, Ordering::AcqRel).checked_sub(1))
+            .map(|k| ((k >> 56) as usize, k & ((1 << 56) - 1)))
+            .filter(|&(l, i)| {
+                (complete..n).contains(&l)
+                    && i < self.meta.layout.level(l).treelet_count()
+                    && !old.levels[l].contains_key(&i)
+            })
+            .collect();
+        wanted.sort_unstable();
+        wanted.dedup();
+        wanted.truncate(DEMAND_BATCH);
+        if wanted.is_empty() {
+            return Ok(());
+        }
+        // Treelets the newest frame entered (and the ones loaded now) are not evicted.
+        let protect = self.frame_clock.load(Ordering::Acquire);
+        let mut victims: Vec<(u64, usize, u64)> = (complete..n)
+            .flat_map(|l| {
+                old.levels[l]
+                    .iter()
+                    .map(move |(&i, t)| (t.last_used.load(Ordering::Relaxed), l, i))
+            })
+            .filter(|v| v.0 < protect)
+            .collect();
+        victims.sort_unstable();
+        let mut victims = victims.into_iter().peekable();
+        let mut maps: Vec<LevelMap<T>> = (complete..n).map(|l| (*old.levels[l]).clone()).collect();
+        let mut bytes = old.resident_bytes;
+        let mut changed = false;
+        'load: for (l, idx) in wanted {
+            if self.request.load(Ordering::Acquire) != request || self.stop.load(Ordering::Acquire)
+            {
+                return Ok(());
+            }
+            if bytes >= self.options.budget_bytes && victims.peek().is_none() {
+                break;
+            }
+            let t = Arc::new(self.load(l, idx)?);
+            t.last_used.store(protect, Ordering::Relaxed);
+            while bytes + t.bytes() > self.options.budget_bytes {
+                let Some((_, vl, vi)) = victims.next() else {
+                    break 'load;
+                };
+                if let Some(v) = maps[vl - complete].remove(&vi) {
+                    bytes -= v.bytes();
+                    self.evictions.fetch_add(1, Ordering::AcqRel);
+                    changed = true;
+                }
+            }
+            bytes += t.bytes();
+            maps[l - complete].insert(idx, t);
+            changed = true;
+        }
+        if changed {
+            let mut levels = old.levels[..complete].to_vec();
+            levels.extend(maps.into_iter().map(Arc::new));
+            self.publish(request, &levels, complete, bytes);
+        }
+        Ok(())
+    }
+
     fn run(&self) {
         loop {
-            let (queries, all, request, old) = {
+            let (queries, all, request, old, demand) = {
                 let mut st = self.state.lock().expect("loader state");
-                while st.finished && !self.stop.load(Ordering::Acquire) {
+                while st.finished
+                    && !(st.demand && st.miss_pending)
+                    && !self.stop.load(Ordering::Acquire)
+                {
                     st = self.changed.wait(st).expect("loader state");
                 }
                 if self.stop.load(Ordering::Acquire) {
                     return;
+                }
+                let demand = st.finished;
+                if demand {
+                    st.miss_pending = false;
+                    st.demand_busy = true;
                 }
                 (
                     st.wanted.clone(),
                     st.all_pass,
                     self.request.load(Ordering::Acquire),
                     st.snapshot.clone(),
+                    demand,
                 )
             };
+            if demand {
+                let result = self.demand_round(request, &old);
+                drop(old);
+                let mut st = self.state.lock().expect("loader state");
+                st.demand_busy = false;
+                if let Err(e) = result
+                    && self.request.load(Ordering::Acquire) == request
+                {
+                    st.error = Some(e);
+                    st.demand = false;
+                }
+                self.changed.notify_all();
+                continue;
+            }
             let result = self.sweep(request, &queries, all, &old);
             drop(old);
             let progress = {
@@ -361,7 +510,10 @@ impl<T: Voxel> Shared<T> {
                 }
                 st.finished = true;
                 match result {
-                    Ok(limited) => st.budget_limited = limited,
+                    Ok(limited) => {
+                        st.budget_limited = limited;
+                        st.demand = limited;
+                    }
                     Err(e) => st.error = Some(e),
                 }
                 self.generation.fetch_add(1, Ordering::AcqRel);
@@ -398,6 +550,7 @@ impl<T: Voxel> OocVolume<T> {
             state: Mutex::new(State {
                 snapshot: Arc::new(Snapshot {
                     levels: Vec::new(),
+                    complete: 0,
                     resident_bytes: 0,
                 }),
                 wanted: Vec::new(),
@@ -405,12 +558,19 @@ impl<T: Voxel> OocVolume<T> {
                 finished: true,
                 budget_limited: false,
                 error: None,
+                demand: false,
+                miss_pending: false,
+                demand_busy: false,
             }),
             changed: Condvar::new(),
             generation: AtomicU64::new(0),
             level_fetched: AtomicU64::new(0),
             level_needed: AtomicU64::new(0),
             listener: Mutex::new(None),
+            frame_clock: AtomicU64::new(0),
+            misses: (0..MISS_SLOTS).map(|_| AtomicU64::new(0)).collect(),
+            missed: AtomicBool::new(false),
+            evictions: AtomicU64::new(0),
         };
         let first = Arc::new(shared.load(0, 0)?);
         let bytes = first.bytes();
@@ -418,6 +578,7 @@ impl<T: Voxel> OocVolume<T> {
         level0.insert(0, first);
         shared.state.lock().expect("loader state").snapshot = Arc::new(Snapshot {
             levels: vec![Arc::new(level0)],
+            complete: 1,
             resident_bytes: bytes,
         });
         let shared = Arc::new(shared);
@@ -447,6 +608,8 @@ impl<T: Voxel> OocVolume<T> {
         st.all_pass = all;
         st.finished = false;
         st.budget_limited = false;
+        st.demand = false;
+        st.miss_pending = false;
         st.error = None;
         self.shared.request.fetch_add(1, Ordering::AcqRel);
         self.shared.generation.fetch_add(1, Ordering::AcqRel);
@@ -472,7 +635,9 @@ impl<T: Voxel> OocVolume<T> {
         self.shared.generation.load(Ordering::Acquire)
     }
 
-    /// The scene for the next frame (the levels published so far).
+    /// The scene for the next frame (the levels published so far). When the budget put
+    /// the loader in demand mode, the treelets this frame misses are paged in after it
+    /// ends (a GUI re-renders on [`Self::generation`]).
     pub fn scene(&self, intersector: Intersector) -> OocScene<T> {
         let snap = self
             .shared
@@ -481,22 +646,28 @@ impl<T: Voxel> OocVolume<T> {
             .expect("loader state")
             .snapshot
             .clone();
+        let stamp = self.shared.frame_clock.fetch_add(1, Ordering::AcqRel) + 1;
         OocScene {
             shared: self.shared.clone(),
             snap,
             intersector,
+            stamp,
         }
     }
 
-    /// Levels published for the current isovalues (1 = the top treelet only).
+    /// Treelets evicted by demand paging so far (least recently used first).
+    pub fn evictions(&self) -> u64 {
+        self.shared.evictions.load(Ordering::Acquire)
+    }
+
+    /// Complete levels published for the current isovalues (1 = the top treelet only).
     pub fn loaded_levels(&self) -> usize {
         self.shared
             .state
             .lock()
             .expect("loader state")
             .snapshot
-            .levels
-            .len()
+            .complete
     }
 
     pub fn level_count(&self) -> usize {
@@ -536,12 +707,13 @@ impl<T: Voxel> OocVolume<T> {
             .clone()
     }
 
-    /// Waits (not from a render thread) until the loader is idle or `timeout` passes;
-    /// returns whether it finished.
+    /// Waits (not from a render thread) until the loader is idle (including the demand
+    /// round for the misses of frames that ended) or `timeout` passes; returns whether it
+    /// finished.
     pub fn wait_until_finished(&self, timeout: Duration) -> bool {
         let deadline = Instant::now() + timeout;
         let mut st = self.shared.state.lock().expect("loader state");
-        while !st.finished {
+        while !st.finished || (st.demand && st.miss_pending) || st.demand_busy {
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
                 return false;
@@ -575,6 +747,19 @@ pub struct OocScene<T: Voxel> {
     shared: Arc<Shared<T>>,
     snap: Arc<Snapshot<T>>,
     intersector: Intersector,
+    /// This frame's use stamp (least-recently-used eviction of demand-paged treelets).
+    stamp: u64,
+}
+
+impl<T: Voxel> Drop for OocScene<T> {
+    /// The frame is over: hand its misses to the loader.
+    fn drop(&mut self) {
+        if self.shared.missed.swap(false, Ordering::AcqRel) {
+            let mut st = self.shared.state.lock().expect("loader state");
+            st.miss_pending = true;
+            self.shared.changed.notify_all();
+        }
+    }
 }
 
 impl<T: Voxel> std::fmt::Debug for OocScene<T> {
@@ -599,9 +784,10 @@ struct Entry {
 const INLINE_STACK: usize = 64;
 
 impl<T: Voxel> OocScene<T> {
-    /// The finest level this frame can reach (0 = coarsest).
+    /// The finest complete level of this frame (0 = coarsest); demand-paged treelets of
+    /// finer levels refine it where they are resident.
     pub fn level(&self) -> usize {
-        self.snap.levels.len().saturating_sub(1)
+        self.snap.complete.saturating_sub(1)
     }
 
     pub fn resident_bytes(&self) -> u64 {
@@ -716,12 +902,20 @@ impl<T: Voxel> OocScene<T> {
                     if tl < render {
                         let idx = linear_index(layout.level(tl + 1).roots, node.map(u64::from));
                         if let Some(child) = levels[tl + 1].get(&idx) {
+                            if tl + 1 >= self.snap.complete
+                                && child.last_used.load(Ordering::Relaxed) != self.stamp
+                            {
+                                child.last_used.store(self.stamp, Ordering::Relaxed);
+                            }
                             cur = child;
                             tl += 1;
                             ti = idx;
                             end = layout.level(tl).end;
                             h = 0;
                             continue;
+                        }
+                        if tl + 1 >= self.snap.complete {
+                            self.shared.record_miss(tl + 1, idx);
                         }
                     }
                     // Intersect the cell of this level's LOD voxels (Listing 7.3).
@@ -1208,6 +1402,100 @@ mod tests {
         assert_eq!(events[0].loaded_levels, 1, "{events:?}");
         assert!(events[0].request > last.request);
         assert_eq!(events.last().unwrap().loaded_levels, n);
+    }
+
+    #[test]
+    fn a_budget_below_the_finest_level_pages_the_view_in_and_evicts_lru() {
+        let dims = [31, 23, 17];
+        let iso = [5.0f32];
+        // The working set without a budget, and the bytes of the coarser levels alone.
+        let (grid, voxels, full) = setup(dims, 4, u64::MAX);
+        let n = full.level_count();
+        let (tx, rx) = std::sync::mpsc::channel::<LoadProgress>();
+        let tx = Mutex::new(tx);
+        full.on_level(move |p| {
+            let _ = tx.lock().unwrap().send(*p);
+        });
+        full.set_isovalues(&iso);
+        assert!(full.wait_until_finished(Duration::from_secs(30)));
+        let coarse_bytes = rx
+            .try_iter()
+            .find(|p| p.loaded_levels == n - 1)
+            .expect("level n-1 published")
+            .resident_bytes;
+        let full_bytes = full.resident_bytes();
+        drop(full);
+        // A quarter of the finest level fits: it is paged in as frames ask for it.
+        let budget = coarse_bytes + (full_bytes - coarse_bytes) / 4;
+        let (_, _, vol) = setup(dims, 4, budget);
+        vol.set_isovalues(&iso);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert!(vol.budget_limited());
+        assert_eq!(vol.loaded_levels(), n - 1);
+        assert!(vol.resident_bytes() <= budget);
+        let incore = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        // Renders `rays` frame after frame until a frame pages nothing in.
+        let converge = |rays: &[Ray]| {
+            for frame in 1..=100 {
+                let g = vol.generation();
+                let hits: Vec<Option<Hit>> = {
+                    let scene = vol.scene(Intersector::Exact);
+                    rays.iter()
+                        .map(|r| scene.first_hit(r, 0.0, f32::INFINITY, &iso, &mut NoStats))
+                        .collect()
+                };
+                assert!(vol.wait_until_finished(Duration::from_secs(30)));
+                assert_eq!(vol.error(), None);
+                assert!(
+                    vol.resident_bytes() <= budget,
+                    "{} > {budget}",
+                    vol.resident_bytes()
+                );
+                if vol.generation() == g {
+                    return (hits, frame);
+                }
+            }
+            panic!("demand paging did not settle in 100 frames");
+        };
+        // Two views down z: a patch over each blob (world: origin (-3, 1, 2), spacing
+        // (1, 0.75, 1.5); blobs at samples (9, 8, 6) and (22, 14, 10)).
+        let patch = |cx: f32, cy: f32| -> Vec<Ray> {
+            (0..81)
+                .map(|k| {
+                    let o = Vec3::new(
+                        cx + 0.5 * (k % 9) as f32 - 2.0,
+                        cy + 0.5 * (k / 9) as f32 - 2.0,
+                        -5.0,
+                    );
+                    Ray::new(o, Vec3::Z)
+                })
+                .collect()
+        };
+        let mut frames_b = 0;
+        for (cx, cy) in [(6.0, 7.0), (19.0, 11.5), (6.0, 7.0)] {
+            let rays = patch(cx, cy);
+            let (hits, frames) = converge(&rays);
+            let want: Vec<Option<Hit>> = rays
+                .iter()
+                .map(|r| incore.first_hit(r, 0.0, f32::INFINITY, &iso, &mut NoStats))
+                .collect();
+            assert!(want.iter().filter(|h| h.is_some()).count() > 20);
+            assert_eq!(hits, want, "view at ({cx}, {cy})");
+            if cx > 10.0 {
+                frames_b = frames;
+            }
+        }
+        // The second view needed treelets the first did not: paged in over frames, with
+        // least-recently-used treelets evicted to stay within the budget.
+        assert!(frames_b > 1, "view B was resident from the start");
+        assert!(vol.evictions() > 0);
+        assert_eq!(vol.loaded_levels(), n - 1);
     }
 
     #[test]
