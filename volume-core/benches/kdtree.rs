@@ -9,6 +9,15 @@
 //! the renderer (what `isoscope bench` measures: packets, single rays and the DDA in the
 //! same run, Blinn–Phong shading included) on the CT-like volume at 1024² and on
 //! Marschner–Lobb 64³…512³ at 512² (`KDBENCH_ML=64,512` picks the sizes), then exits.
+//!
+//! `KDBENCH=trace` times the kd-tree's own work without the renderer, on the CT-like
+//! volume at 1024² (orbit 30°/20°, the renderer's camera): the frame's primary rays are
+//! generated once, in 16×16 tiles in Morton order and clipped to the bounds (the rays and
+//! packets of 8 the renderer casts), then each mode is timed over rayon per tile:
+//! `scene packet` (`GridScene::first_hit_packet`: per-packet setup, traversal,
+//! intersection, normals), `scene single` (`first_hit`), `tree packet` (only
+//! `KdTree::first_hit_packet` on precomputed traversal-unit rays), `normals` (only
+//! `normal_at` at the frame's hits) and the DDA. `KDBENCH_FRAMES` sets the median count.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -16,12 +25,13 @@ use std::time::Instant;
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use rayon::prelude::*;
-use volume_core::grid_scene::GridScene;
-use volume_core::intersect::Intersector;
-use volume_core::kdtree::KdTreeConfig;
+use volume_core::grid_scene::{GridScene, normal_at};
+use volume_core::intersect::methods::Exact;
+use volume_core::intersect::{CellHit, Intersector, IsoSet, LocalRay};
+use volume_core::kdtree::{KdTreeConfig, PACKET_WIDTH, packet_compatible};
 use volume_core::math::Ray;
 use volume_core::render::{
-    Camera, CountStats, IsoScene, NoStats, RenderSettings, Stats, Surface, render,
+    Camera, CountStats, IsoScene, NoStats, RayGen, RenderSettings, Stats, Surface, TILE, render,
 };
 use volume_core::{Grid, Voxel, VoxelBuffer};
 
@@ -352,9 +362,316 @@ fn render_summary() {
     }
 }
 
+/// The renderer's primary rays for one frame: per 16×16 tile in Morton order, clipped to
+/// the bounds (rays that miss the bounds are dropped, as the renderer does).
+struct TileRays {
+    rays: Vec<Ray>,
+    t0: Vec<f32>,
+    t1: Vec<f32>,
+}
+
+fn frame_tiles<S: IsoScene>(scene: &S, camera: &Camera, size: u32) -> Vec<TileRays> {
+    let raygen = RayGen::new(camera, size, size);
+    let bounds = scene.world_bounds();
+    let morton: Vec<[u32; 2]> = (0..TILE * TILE)
+        .map(|m| {
+            let (mut x, mut y) = (0, 0);
+            for b in 0..8 {
+                x |= ((m >> (2 * b)) & 1) << b;
+                y |= ((m >> (2 * b + 1)) & 1) << b;
+            }
+            [x, y]
+        })
+        .filter(|p| p[0] < TILE && p[1] < TILE)
+        .collect();
+    let tiles = size.div_ceil(TILE);
+    (0..tiles * tiles)
+        .map(|t| {
+            let (tx, ty) = (t % tiles, t / tiles);
+            let mut tr = TileRays {
+                rays: vec![],
+                t0: vec![],
+                t1: vec![],
+            };
+            for &[dx, dy] in &morton {
+                let (x, y) = (tx * TILE + dx, ty * TILE + dy);
+                if x >= size || y >= size {
+                    continue;
+                }
+                let ray = raygen.ray_at(x as f32 + 0.5, y as f32 + 0.5);
+                if let Some((a, b)) = bounds.intersect(&ray, 0.0, f32::INFINITY) {
+                    tr.rays.push(ray);
+                    tr.t0.push(a);
+                    tr.t1.push(b);
+                }
+            }
+            tr
+        })
+        .collect()
+}
+
+/// CPU seconds used by this process so far (user + system, all threads; Linux
+/// `/proc/self/stat`, 10 ms ticks), or NaN elsewhere. On a shared machine CPU time is far
+/// steadier than wall time: waiting for a core is not counted.
+fn process_cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return f64::NAN;
+    };
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .skip(11)
+        .take(2)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    if f.len() == 2 {
+        (f[0] + f[1]) / 100.0
+    } else {
+        f64::NAN
+    }
+}
+
+/// (median wall seconds, mean CPU seconds) per call of `f` over `n` calls.
+fn wall_and_cpu(mut f: impl FnMut(), n: usize) -> (f64, f64) {
+    let c0 = process_cpu_seconds();
+    let wall = median_seconds(&mut f, n);
+    (wall, (process_cpu_seconds() - c0) / n as f64)
+}
+
+/// Times the kd-tree's own work per frame (see the module docs).
+fn trace_summary() {
+    let frames: usize = std::env::var("KDBENCH_FRAMES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    // KDBENCH_UNSTORED overrides the default unstored levels (layout experiments).
+    let unstored = std::env::var("KDBENCH_UNSTORED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(KdTreeConfig::default().unstored_levels);
+    let dims = [256, 256, 110];
+    let grid = Grid::uniform(dims, [0.0; 3], [0.9, 0.9, 1.5]).unwrap();
+    let ct = GridScene::new(
+        &grid,
+        VoxelBuffer::from_vec(ct_like(dims)),
+        Intersector::Exact,
+        KdTreeConfig {
+            unstored_levels: unstored,
+        },
+    )
+    .unwrap();
+    let size = 1024u32;
+    let cam = Camera::orbit(&ct.world_bounds(), 30.0, 20.0, 40.0);
+    let tiles = frame_tiles(&ct, &cam, size);
+    let isos = [300.0f32];
+    let iso_set = IsoSet::<i16>::new(&isos);
+    let pixels = f64::from(size) * f64::from(size);
+    let n_rays: usize = tiles.iter().map(|t| t.rays.len()).sum();
+
+    let scene_packet = || -> usize {
+        tiles
+            .par_iter()
+            .map(|t| {
+                let mut out = vec![None; t.rays.len()];
+                ct.first_hit_packet(&t.rays, &t.t0, &t.t1, &isos, &mut out, &mut NoStats);
+                out.iter().filter(|h| h.is_some()).count()
+            })
+            .sum()
+    };
+    let scene_single = || -> usize {
+        tiles
+            .par_iter()
+            .map(|t| {
+                (0..t.rays.len())
+                    .filter(|&i| {
+                        ct.first_hit(&t.rays[i], t.t0[i], t.t1[i], &isos, &mut NoStats)
+                            .is_some()
+                    })
+                    .count()
+            })
+            .sum()
+    };
+    // Traversal-unit rays and clipped intervals, precomputed per packet.
+    let local: Vec<Vec<(LocalRay, f32, f32)>> = tiles
+        .iter()
+        .map(|t| {
+            (0..t.rays.len())
+                .map(|i| {
+                    let l = ct.frame().to_local(&t.rays[i]);
+                    let (a, b) = ct
+                        .frame()
+                        .clip(&l, t.t0[i], t.t1[i])
+                        .unwrap_or((f32::INFINITY, f32::NEG_INFINITY));
+                    (l, a, b)
+                })
+                .collect()
+        })
+        .collect();
+    let tree_packet = |collect: bool| -> (usize, Vec<(CellHit, Vec3)>) {
+        tiles
+            .par_iter()
+            .zip(&local)
+            .map(|(_, l)| {
+                let mut hits = 0;
+                let mut found = vec![];
+                for chunk in l.chunks(PACKET_WIDTH) {
+                    let rays: [LocalRay; PACKET_WIDTH] =
+                        std::array::from_fn(|i| chunk.get(i).map_or(chunk[0].0, |c| c.0));
+                    let n = chunk.len();
+                    let t0: [f32; PACKET_WIDTH] =
+                        std::array::from_fn(|i| chunk.get(i).map_or(0.0, |c| c.1));
+                    let t1: [f32; PACKET_WIDTH] =
+                        std::array::from_fn(|i| chunk.get(i).map_or(0.0, |c| c.2));
+                    let mut out = [None; PACKET_WIDTH];
+                    if packet_compatible(&rays[..n]) {
+                        ct.tree().first_hit_packet(
+                            ct.frame(),
+                            ct.voxels(),
+                            &rays[..n],
+                            &t0[..n],
+                            &t1[..n],
+                            &iso_set,
+                            Exact,
+                            &mut NoStats,
+                            &mut out[..n],
+                        );
+                    } else {
+                        for i in 0..n {
+                            if t0[i] <= t1[i] {
+                                out[i] = ct.tree().first_hit(
+                                    ct.frame(),
+                                    ct.voxels(),
+                                    &rays[i],
+                                    t0[i],
+                                    t1[i],
+                                    &iso_set,
+                                    Exact,
+                                    &mut NoStats,
+                                );
+                            }
+                        }
+                    }
+                    for (i, h) in out[..n].iter().enumerate() {
+                        if let Some(h) = h {
+                            hits += 1;
+                            if collect {
+                                let (lo, hi) = ct.frame().cell_box(h.cell);
+                                let p = rays[i].origin + rays[i].dir * h.t;
+                                let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
+                                found.push((*h, uvw));
+                            }
+                        }
+                    }
+                }
+                (hits, found)
+            })
+            .reduce(
+                || (0, vec![]),
+                |mut a, b| {
+                    a.0 += b.0;
+                    a.1.extend(b.1);
+                    a
+                },
+            )
+    };
+    let (_, cell_hits) = tree_packet(true);
+    let normals = || -> usize {
+        cell_hits
+            .par_chunks(256)
+            .map(|c| {
+                c.iter()
+                    .filter(|(h, uvw)| {
+                        normal_at(ct.frame(), ct.voxels(), ct.dims(), h.cell, *uvw).is_some()
+                    })
+                    .count()
+            })
+            .sum()
+    };
+    let dda = ct.dda();
+    let dda_frame = || -> usize {
+        tiles
+            .par_iter()
+            .map(|t| {
+                (0..t.rays.len())
+                    .filter(|&i| {
+                        dda.first_hit(&t.rays[i], t.t0[i], t.t1[i], &isos, &mut NoStats)
+                            .is_some()
+                    })
+                    .count()
+            })
+            .sum()
+    };
+    let hits = scene_packet();
+    assert_eq!(hits, scene_single(), "packet and single hits differ");
+    assert_eq!(hits, tree_packet(false).0, "tree-only hits differ");
+    println!(
+        "CT-like i16 256×256×110 @{size}², iso 300, unstored levels {unstored}: {n_rays} rays in the bounds, {hits} hits, {frames} frames (median)"
+    );
+    println!(
+        "| mode | wall ms/frame (median) | CPU ms/frame (mean) | Mrays/s (per pixel, wall) | vs DDA (CPU) |"
+    );
+    let (dd_wall, dd) = wall_and_cpu(
+        || {
+            black_box(dda_frame());
+        },
+        1,
+    );
+    let row = |name: &str, (wall, cpu): (f64, f64)| {
+        println!(
+            "| {name} | {:.1} | {:.1} | {:.2} | {:.1}× |",
+            wall * 1e3,
+            cpu * 1e3,
+            pixels / wall / 1e6,
+            dd / cpu
+        );
+    };
+    row(
+        "scene packet (setup + traversal + normals)",
+        wall_and_cpu(
+            || {
+                black_box(scene_packet());
+            },
+            frames,
+        ),
+    );
+    row(
+        "scene single",
+        wall_and_cpu(
+            || {
+                black_box(scene_single());
+            },
+            frames,
+        ),
+    );
+    row(
+        "tree packet (traversal + intersection)",
+        wall_and_cpu(
+            || {
+                black_box(tree_packet(false));
+            },
+            frames,
+        ),
+    );
+    row(
+        "normals at the hits",
+        wall_and_cpu(
+            || {
+                black_box(normals());
+            },
+            frames,
+        ),
+    );
+    row("DDA single", (dd_wall, dd));
+}
+
 fn bench(c: &mut Criterion) {
     if std::env::var("KDBENCH").as_deref() == Ok("render") {
         render_summary();
+        std::process::exit(0);
+    }
+    if std::env::var("KDBENCH").as_deref() == Ok("trace") {
+        trace_summary();
         std::process::exit(0);
     }
     summary();

@@ -338,15 +338,29 @@ fn normal_interior_f32<T: Voxel>(
     {
         return None;
     }
-    let (sx, sy) = (1, dims[0]);
-    let sz = dims[0] * dims[1];
+    let (sy, sz) = (dims[0], dims[0] * dims[1]);
     let base = cell[0] + sy * cell[1] + sz * cell[2];
-    // The 4×4×4 block minus its 8 corners and 24 edge samples: the 32 samples that the
-    // central differences at the cell's 8 corners read. Index checks once, up front.
-    let lo = base - sx - sy - sz;
-    let hi = base + 2 * (sx + sy + sz);
-    let vox = &voxels[lo..=hi];
-    let at = |o: usize| vox[o - lo].to_f32();
+    // The 32 samples the central differences at the cell's 8 corners read (the 4×4×4
+    // block minus its corners and edges), loaded once as short rows (one bounds check per
+    // row) and converted to f32 once:
+    // - x: for each (y, z) of the cell, the row x = −1..=2;
+    // - y: for each z, the rows y = −1 and y = 2 at x = 0..=1;
+    // - z: for each y, the rows z = −1 and z = 2 at x = 0..=1.
+    let row4 = |o: usize| -> [f32; 4] {
+        let r: &[T; 4] = voxels[o..o + 4].try_into().expect("4 samples");
+        r.map(Voxel::to_f32)
+    };
+    let row2 = |o: usize| -> [f32; 2] {
+        let r: &[T; 2] = voxels[o..o + 2].try_into().expect("2 samples");
+        r.map(Voxel::to_f32)
+    };
+    // xr[z][y][x + 1]
+    let xr = [0, 1].map(|z| [0, 1].map(|y| row4(base - 1 + y * sy + z * sz)));
+    // yr[z][0 = y −1, 1 = y 2][x], zr[y][0 = z −1, 1 = z 2][x]
+    let yr = [0, 1].map(|z| [row2(base - sy + z * sz), row2(base + 2 * sy + z * sz)]);
+    let zr = [0, 1].map(|y| [row2(base + y * sy - sz), row2(base + y * sy + 2 * sz)]);
+    // Value at (x, y, z) of the cell's own 2×2×2 corners.
+    let v = |x: usize, y: usize, z: usize| xr[z][y][x + 1];
     // Inverse central-difference widths per axis for the cell's two sample planes.
     let inv_w = |a: usize| -> [f32; 2] {
         let p = &frame.pos[a];
@@ -357,12 +371,19 @@ fn normal_interior_f32<T: Voxel>(
     let mut grad = Vec3::ZERO;
     for c in 0..8 {
         let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
-        let o = base + bx * sx + by * sy + bz * sz;
-        let g = Vec3::new(
-            (at(o + sx) - at(o - sx)) * wx[bx],
-            (at(o + sy) - at(o - sy)) * wy[by],
-            (at(o + sz) - at(o - sz)) * wz[bz],
-        );
+        // The neighbours one sample below and above along each axis.
+        let (xm, xp) = (xr[bz][by][bx], xr[bz][by][bx + 2]);
+        let (ym, yp) = if by == 0 {
+            (yr[bz][0][bx], v(bx, 1, bz))
+        } else {
+            (v(bx, 0, bz), yr[bz][1][bx])
+        };
+        let (zm, zp) = if bz == 0 {
+            (zr[by][0][bx], v(bx, by, 1))
+        } else {
+            (v(bx, by, 0), zr[by][1][bx])
+        };
+        let g = Vec3::new((xp - xm) * wx[bx], (yp - ym) * wy[by], (zp - zm) * wz[bz]);
         let w = (if bx == 1 { uvw.x } else { 1.0 - uvw.x })
             * (if by == 1 { uvw.y } else { 1.0 - uvw.y })
             * (if bz == 1 { uvw.z } else { 1.0 - uvw.z });

@@ -524,7 +524,14 @@ const METHOD_NOTES: &str = "\
   64·ε·max|g| (≈ 4e-6 of the cell's value range) of the isovalue counts as a touch, so
   tangent rays hit; two roots closer than about 1e-3 cell are reported at the extremum
   between them (|Δt| up to half their distance), and near misses inside that band become
-  hits (see the limits table).
+  hits (see the limits table). Crossings at a cell face: the entry and exit points are
+  each formed from the ray and the cell box, with the coordinate across the shared face set
+  to exactly 0 or 1, so both cells see the same point there and one of them finds the
+  crossing. (Before, the exit was entry + direction·Δt: with the f32 cancellation in the
+  entry point, ~ε·700 cells for an orbit camera on 256³, the two cells disagreed by
+  ~1e-4 cell and crossings that close to a face were lost: the 2 + 1 far hits on
+  Marschner–Lobb 256³ of earlier reports; regression test in
+  `volume_core::intersect::accuracy`.)
 - **schwarze**: Cardano's formula in f32. Exact in exact arithmetic, but cancellation for
   nearly quadratic segments and clustered roots costs digits: large |Δt| on a few rays, and
   misses where rounding pushes a double root to a complex pair.

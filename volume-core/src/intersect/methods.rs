@@ -293,37 +293,71 @@ impl CellIntersector for Exact {
         let Ok((k, gmax)) = setup(corners, iso, seg) else {
             return Some(0.0);
         };
-        let f0 = k[3];
-        if f0 == 0.0 {
-            return Some(0.0);
-        }
-        let tol = 64.0 * f32::EPSILON * gmax;
-        let (ext, n) = extrema_f32(&k);
-        let (mut s_prev, mut f_prev) = (0.0f32, f0);
-        let ends = ext[..n].iter().map(|&e| (e, true));
-        for (s, is_extremum) in ends.chain(std::iter::once((1.0, false))) {
-            let fs = eval(&k, s);
-            if fs == 0.0 {
-                return Some(f64::from(s));
-            }
-            if (fs > 0.0) != (f_prev > 0.0) {
-                return Some(f64::from(refine_illinois(
-                    &k,
-                    s_prev,
-                    f_prev,
-                    s,
-                    fs,
-                    EXACT_ITERATIONS,
-                )));
-            }
-            if is_extremum && fs.abs() <= tol {
-                return Some(f64::from(s));
-            }
-            s_prev = s;
-            f_prev = fs;
-        }
-        None
+        exact_first_root(&k, gmax, true)
     }
+}
+
+/// [`Exact`] on the cubic `k` of a cell whose largest corner difference is `gmax`;
+/// `early_out` enables [`bernstein_clear`] (off only to test that it changes nothing).
+#[inline(always)]
+fn exact_first_root(k: &[f32; 4], gmax: f32, early_out: bool) -> Option<f64> {
+    let k = *k;
+    let f0 = k[3];
+    if f0 == 0.0 {
+        return Some(0.0);
+    }
+    let tol = 64.0 * f32::EPSILON * gmax;
+    if early_out && bernstein_clear(&k, tol) {
+        return None;
+    }
+    let (ext, n) = extrema_f32(&k);
+    let (mut s_prev, mut f_prev) = (0.0f32, f0);
+    let ends = ext[..n].iter().map(|&e| (e, true));
+    for (s, is_extremum) in ends.chain(std::iter::once((1.0, false))) {
+        let fs = eval(&k, s);
+        if fs == 0.0 {
+            return Some(f64::from(s));
+        }
+        if (fs > 0.0) != (f_prev > 0.0) {
+            return Some(f64::from(refine_illinois(
+                &k,
+                s_prev,
+                f_prev,
+                s,
+                fs,
+                EXACT_ITERATIONS,
+            )));
+        }
+        if is_extremum && fs.abs() <= tol {
+            return Some(f64::from(s));
+        }
+        s_prev = s;
+        f_prev = fs;
+    }
+    None
+}
+
+/// True when `f` provably stays farther than `tol` from 0 on `[0, 1]` *as [`Exact`]
+/// evaluates it*, so [`Exact`] would return `None`: the early out for rays that cross a
+/// straddling cell without touching the surface (most intersection tests), skipping the
+/// extrema (a square root, divisions) and the evaluations.
+///
+/// On `[0, 1]` the cubic lies in the convex hull of its Bernstein coefficients
+/// `d, d + c/3, d + 2c/3 + b/3, a + b + c + d`. With `S = |a| + |b| + |c| + |d|`, forming
+/// them in `f32` errs by at most about `3ε·S` and a Horner evaluation at any `s ∈ [0, 1]`
+/// by about `6ε·S`; so if every coefficient exceeds `tol + 16ε·S` (or all are below its
+/// negative), every value [`Exact`] computes has one sign and magnitude above `tol`: no
+/// zero, no sign change, no tangent touch. Results are bit-identical to the full method.
+#[inline(always)]
+fn bernstein_clear(k: &[f32; 4], tol: f32) -> bool {
+    let [a, b, c, d] = *k;
+    let b1 = d + c * (1.0 / 3.0);
+    let b2 = d + c * (2.0 / 3.0) + b * (1.0 / 3.0);
+    let b3 = a + b + c + d;
+    let margin = tol + 16.0 * f32::EPSILON * (a.abs() + b.abs() + c.abs() + d.abs());
+    let lo = d.min(b1).min(b2.min(b3));
+    let hi = d.max(b1).max(b2.max(b3));
+    lo > margin || hi < -margin
 }
 
 /// Schwarze's analytic cubic solver (Graphics Gems I; Cardano with the trigonometric form
@@ -606,6 +640,44 @@ mod tests {
         for (x, t) in r.iter().zip([0.25, 0.5, 0.75]) {
             assert!((x - t).abs() < 1e-5, "{r:?}");
         }
+    }
+
+    #[test]
+    fn bernstein_early_out_changes_no_exact_result() {
+        // Random cells and segments (xorshift), near-tangent ones included: the early out
+        // must only skip cells the full method misses, and it must fire often.
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut skipped, mut total) = (0, 0);
+        for case in 0..200_000 {
+            let mut g: [f32; 8] = std::array::from_fn(|_| 2.0 * rnd() - 1.0);
+            if case % 3 == 0 {
+                // Shift towards a tangent: corners barely straddle 0.
+                let m = g.iter().fold(f32::INFINITY, |m, v| m.min(*v));
+                g = g.map(|v| v - m - 1e-4 * rnd());
+            }
+            let p0 = [rnd(), rnd(), rnd()];
+            let dp = [0, 1, 2].map(|a| (rnd() - p0[a]) * if case % 5 == 0 { 1e-3 } else { 1.0 });
+            let k = cubic_f32(&g, p0, dp);
+            let gmax = g.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            let full = exact_first_root(&k, gmax, false);
+            let fast = exact_first_root(&k, gmax, true);
+            assert_eq!(full, fast, "case {case}: g {g:?} p0 {p0:?} dp {dp:?}");
+            total += 1;
+            let tol = 64.0 * f32::EPSILON * gmax;
+            if k[3] != 0.0 && bernstein_clear(&k, tol) {
+                skipped += 1;
+            }
+        }
+        assert!(
+            skipped * 5 > total,
+            "early out fired on {skipped} of {total}"
+        );
     }
 
     #[test]

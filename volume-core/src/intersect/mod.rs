@@ -148,6 +148,8 @@ macro_rules! dispatch_intersector {
 pub struct CellSegment {
     pub origin: Vec3,
     pub dir: Vec3,
+    /// The ray's `1 / dir` (to recognise the faces the slab test entered and left by).
+    pub inv_dir: Vec3,
     /// Cell bounds.
     pub lo: Vec3,
     pub hi: Vec3,
@@ -157,12 +159,44 @@ pub struct CellSegment {
 
 impl CellSegment {
     /// Cell-local entry point and displacement over the segment (`s ∈ [0, 1]`).
+    ///
+    /// Entry and exit points are each formed as `((origin − lo) + dir·t) / width`, and the
+    /// coordinate across the face the slab test entered (left) by is set to exactly 0 or 1.
+    /// Two cells that share a face thus see bit-identical in-face coordinates at the shared
+    /// point, so the surface's sign there agrees up to the cubic's own rounding: a crossing
+    /// right at a face is found in one of the two cells. (With the entry point alone plus
+    /// `dir·Δt`, the f32 cancellation in `(origin − lo) + dir·t`, about `ε·|origin − lo|`
+    /// cells, differed between the two cells: a ray from 700 cells away could lose a
+    /// crossing within ~1e-4 cells of a face; see docs/accuracy.md, "far hits".)
     #[inline(always)]
     pub fn local_f32(&self) -> ([f32; 3], [f32; 3]) {
         let inv_w = (self.hi - self.lo).recip();
-        let p0 = ((self.origin - self.lo) + self.dir * self.t_near) * inv_w;
-        let dp = self.dir * ((self.t_far - self.t_near) * inv_w);
-        (p0.to_array(), dp.to_array())
+        let rel = self.origin - self.lo;
+        let mut p0 = ((rel + self.dir * self.t_near) * inv_w).to_array();
+        let mut p1 = ((rel + self.dir * self.t_far) * inv_w).to_array();
+        for a in 0..3 {
+            let d = self.dir[a];
+            if d == 0.0 {
+                continue;
+            }
+            // The slab test's plane distances, from the same operands (frame::slab).
+            let inv = self.inv_dir[a];
+            let t_lo = (self.lo[a] - self.origin[a]) * inv;
+            let t_hi = (self.hi[a] - self.origin[a]) * inv;
+            let (t_in, t_out, face_in, face_out) = if d > 0.0 {
+                (t_lo, t_hi, 0.0, 1.0)
+            } else {
+                (t_hi, t_lo, 1.0, 0.0)
+            };
+            if t_in == self.t_near {
+                p0[a] = face_in;
+            }
+            if t_out == self.t_far {
+                p1[a] = face_out;
+            }
+        }
+        let dp = [0, 1, 2].map(|a| p1[a] - p0[a]);
+        (p0, dp)
     }
 
     /// `f64` twin of [`CellSegment::local_f32`] from the same `f32` inputs.
@@ -443,6 +477,7 @@ pub fn intersect_prepared_cell<T: Voxel, C: CellIntersector, S: crate::render::S
     let seg = CellSegment {
         origin: ray.origin,
         dir: ray.dir,
+        inv_dir: ray.inv_dir,
         lo,
         hi,
         t_near,

@@ -457,6 +457,7 @@ impl<T: Voxel> KdTree<T> {
                 let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
                 let right_real = 2 * na + 1 < lv.child_count;
                 level += 1;
+                self.prefetch_grandchildren(level, left, right);
                 // A child is live if it is real and (on a stored level) its range holds an
                 // isovalue; siblings are adjacent in the level array.
                 let (left_live, right_live) = if level < self.stored {
@@ -556,6 +557,40 @@ impl<T: Voxel> KdTree<T> {
         }
         best
     }
+}
+
+impl<T: Voxel> KdTree<T> {
+    /// Starts loading the child pairs of `left` and `right` (nodes at `level`), which the
+    /// step after next reads, while this step's pair is still on its way: on the deep
+    /// stored levels these pairs miss the cache (the hottest load of the traversal before).
+    /// Only addresses are computed (no data dependency), so the loads overlap.
+    #[inline(always)]
+    pub(crate) fn prefetch_grandchildren(&self, level: usize, left: [u32; 3], right: [u32; 3]) {
+        if level + 1 < self.stored {
+            let lv = &self.levels[level];
+            let u = lv.unit;
+            let base = self.ranges.as_ptr().wrapping_add(lv.child_offset);
+            let l = [left[0] << u[0], left[1] << u[1], left[2] << u[2]];
+            let r = [right[0] << u[0], right[1] << u[1], right[2] << u[2]];
+            prefetch(base.wrapping_add(addr(lv.child_stride, l)));
+            prefetch(base.wrapping_add(addr(lv.child_stride, r)));
+        }
+    }
+}
+
+/// A cache prefetch hint for the line holding `p` (any address; nothing is read).
+#[inline(always)]
+fn prefetch<U>(p: *const U) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is a hint: it never faults, reads nothing into the program and
+    // writes nothing, whatever the address (SSE is part of the x86_64 baseline). The
+    // traversal tests (kd-tree == DDA, packet == single) run through it.
+    #[allow(unsafe_code)]
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
 }
 
 #[inline(always)]
