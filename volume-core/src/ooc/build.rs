@@ -169,7 +169,7 @@ fn cell_ranges<T: Voxel>(
     for z in 0..=nz {
         for y in 0..=ny {
             let at = lo[0] + lod_dims[0] * (lo[1] + y + lod_dims[1] * (lo[2] + z));
-            let row = &lod[at..at + nx + 1];
+            let row = &lod[at..=at + nx];
             a.extend(row.windows(2).map(|w| {
                 if w[1] < w[0] {
                     [w[1], w[0]]
@@ -276,23 +276,23 @@ struct RangeCtx<'a, T: Voxel> {
     lod_cells: [u64; 3],
     child_roots: Option<&'a [[T; 2]]>,
     /// This treelet's cell ranges from [`cell_ranges`]: ranges, first cell, cells per axis.
-    cells: Option<(&'a [[T; 2]], [u64; 3], [usize; 3])>,
+    cells: Option<CellRanges<'a, T>>,
 }
+
+/// A treelet's cell ranges, its first cell and cells per axis.
+type CellRanges<'a, T> = (&'a [[T; 2]], [u64; 3], [usize; 3]);
 
 impl<T: Voxel> RangeCtx<'_, T> {
     /// Range of `node` at tree level `level`, filling heap slot `h` and below.
     fn subtree(&self, level: usize, node: [u64; 3], h: usize, out: &mut [[T; 2]]) -> [T; 2] {
         if level == self.end {
-            let mut r = match self.cells {
-                Some((c, lo, n)) => {
-                    let d = [0, 1, 2].map(|a| (node[a] - lo[a]) as usize);
-                    c[d[0] + n[0] * (d[1] + n[1] * d[2])]
-                }
-                None => {
-                    let cell = node.map(|x| x as usize);
-                    corner_range(&cell_corners(self.lod, self.lod_dims, cell))
-                        .map_or([T::HIGHEST, T::LOWEST], |(a, b)| [a, b])
-                }
+            let mut r = if let Some((c, lo, n)) = self.cells {
+                let d = [0, 1, 2].map(|a| (node[a] - lo[a]) as usize);
+                c[d[0] + n[0] * (d[1] + n[1] * d[2])]
+            } else {
+                let cell = node.map(|x| x as usize);
+                corner_range(&cell_corners(self.lod, self.lod_dims, cell))
+                    .map_or([T::HIGHEST, T::LOWEST], |(a, b)| [a, b])
             };
             if let Some(c) = self.child_roots {
                 r = union(r, c[linear_index(self.lod_cells, node) as usize]);
