@@ -249,11 +249,75 @@ fn cpu_ms_per(mut f: impl FnMut()) -> f64 {
     (cpu_ms() - c0) / f64::from(n)
 }
 
+/// Renderer-like packets: per 16×16 tile, only the rays that meet the scene bounds, with
+/// `[t_min, t_max]` cut to them (the renderer passes no others). Returns the rays, ranges
+/// and the packet start offsets.
+fn bounded_packets(scene: &TetScene, side: u32) -> (Vec<Ray>, Vec<f32>, Vec<f32>, Vec<usize>) {
+    let b = scene.world_bounds();
+    let (mut rays, mut t0, mut t1, mut starts) = (Vec::new(), Vec::new(), Vec::new(), vec![]);
+    for tile in tile_rays(scene, side).chunks(256) {
+        starts.push(rays.len());
+        for r in tile {
+            if let Some((a, c)) = b.intersect(r, 0.0, f32::INFINITY) {
+                rays.push(*r);
+                t0.push(a);
+                t1.push(c);
+            }
+        }
+    }
+    starts.push(rays.len());
+    (rays, t0, t1, starts)
+}
+
+/// Traces renderer-like packets ([`bounded_packets`]) one by one; `normals` through the
+/// `IsoScene` entry point (with the shading normal), else raw hits.
+fn trace_packets(
+    scene: &TetScene,
+    p: &(Vec<Ray>, Vec<f32>, Vec<f32>, Vec<usize>),
+    iso: f32,
+    normals: bool,
+) -> usize {
+    let (rays, t0, t1, starts) = p;
+    let mut raw = [None; 256];
+    let mut hits = [None; 256];
+    let mut n_hit = 0;
+    for w in starts.windows(2) {
+        let (s, e) = (w[0], w[1]);
+        if s == e {
+            continue;
+        }
+        let n = e - s;
+        if normals {
+            scene.first_hit_packet(
+                &rays[s..e],
+                &t0[s..e],
+                &t1[s..e],
+                &[iso],
+                &mut hits[..n],
+                &mut NoStats,
+            );
+            n_hit += hits[..n].iter().filter(|h| h.is_some()).count();
+        } else {
+            scene.first_hit_packet_raw(
+                &rays[s..e],
+                &t0[s..e],
+                &t1[s..e],
+                &[iso],
+                &mut raw[..n],
+                &mut NoStats,
+            );
+            n_hit += raw[..n].iter().filter(|h| h.is_some()).count();
+        }
+    }
+    n_hit
+}
+
 /// Where a frame's time goes (`TET_BENCH_ONLY=probe`); `TET_BENCH_ONLY=loop-empty`,
-/// `loop-frame`, `loop-trace` run one part for ~10 s (for `perf record`).
+/// `loop-frame`, `loop-trace` (cube), `loop-trace-ball` run one part for ~10 s (for
+/// `perf record`).
 fn probe(mode: &str) {
-    let mesh = cube_mesh(38);
-    let scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+    let cube = cube_mesh(38);
+    let scene = TetScene::new(&cube, "f", BvhOptions::default()).unwrap();
     let go = AtomicBool::new(false);
     let cam = camera(&scene);
     let until = Instant::now() + std::time::Duration::from_secs(10);
@@ -266,16 +330,19 @@ fn probe(mode: &str) {
             }
             return;
         }
-        "loop-trace" => {
-            let rays = tile_rays(&scene, 1024);
-            let b = scene.world_bounds();
-            let (t0, t1): (Vec<f32>, Vec<f32>) = rays
-                .iter()
-                .map(|r| b.intersect(r, 0.0, f32::INFINITY).unwrap_or((1.0, 0.0)))
-                .unzip();
-            let mut out = vec![None; rays.len()];
+        "loop-trace" | "loop-trace-ball" => {
+            let (scene, iso) = if mode == "loop-trace" {
+                (scene, 0.7)
+            } else {
+                let ball = ball_mesh(46);
+                (
+                    TetScene::new(&ball, "f", BvhOptions::default()).unwrap(),
+                    0.5,
+                )
+            };
+            let p = bounded_packets(&scene, 1024);
             while Instant::now() < until {
-                scene.first_hit_packet_raw(&rays, &t0, &t1, &[0.7], &mut out, &mut NoStats);
+                black_box(trace_packets(&scene, &p, iso, false));
             }
             return;
         }
@@ -292,26 +359,25 @@ fn probe(mode: &str) {
         let cpu = cpu_ms_per(|| {
             black_box(render(&scene, &cam, &s, &go).unwrap());
         });
-        println!("frame, {what}: wall {wall:.1} ms, cpu {cpu:.1} ms/frame");
+        println!("cube frame, {what}: wall {wall:.1} ms, cpu {cpu:.1} ms/frame");
     }
-    let rays = tile_rays(&scene, 1024);
-    let b = scene.world_bounds();
-    let (mut t0, mut t1) = (Vec::new(), Vec::new());
-    for r in &rays {
-        let (a, c) = b.intersect(r, 0.0, f32::INFINITY).unwrap_or((1.0, 0.0));
-        t0.push(a);
-        t1.push(c);
+    let ball = ball_mesh(46);
+    let ball = TetScene::new(&ball, "f", BvhOptions::default()).unwrap();
+    for (name, scene, iso) in [("cube", &scene, 0.7f32), ("ball", &ball, 0.5)] {
+        let p = bounded_packets(scene, 1024);
+        let hits = trace_packets(scene, &p, iso, false);
+        let cpu = cpu_ms_per(|| {
+            black_box(trace_packets(scene, &p, iso, false));
+        });
+        println!(
+            "{name}: trace only, 1 thread, {} rays in bounds, {hits} hits: cpu {cpu:.1} ms/frame",
+            p.0.len()
+        );
+        let cpu = cpu_ms_per(|| {
+            black_box(trace_packets(scene, &p, iso, true));
+        });
+        println!("{name}: first_hit_packet incl. normals, 1 thread: cpu {cpu:.1} ms/frame");
     }
-    let mut out = vec![None; rays.len()];
-    let cpu = cpu_ms_per(|| {
-        scene.first_hit_packet_raw(&rays, &t0, &t1, &[0.7], &mut out, &mut NoStats);
-    });
-    println!("trace only (1 thread, rays cut to the bounds): cpu {cpu:.1} ms/frame");
-    let mut hits = vec![None; rays.len()];
-    let cpu = cpu_ms_per(|| {
-        scene.first_hit_packet(&rays, &t0, &t1, &[0.7], &mut hits, &mut NoStats);
-    });
-    println!("first_hit_packet incl. normals (1 thread): cpu {cpu:.1} ms/frame");
 }
 
 fn summary() {

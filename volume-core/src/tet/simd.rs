@@ -48,28 +48,55 @@ impl RayBlock {
         uniform: false,
     };
 
-    /// The block of `rays` (1 to 8 of them) and their `t_min`. The ray space is
-    /// [`super::mt::RaySpace::new`] computed 8 lanes at a time (same operations, same bits).
-    #[inline]
+    /// The block of `rays` (1 to 8 of them) and their `t_min`, ray space included.
+    #[cfg(test)]
     pub(crate) fn new(rays: &[Ray], t_min: &[f32]) -> Self {
+        let mut b = Self::base(rays, t_min);
+        b.prepare_space(rays);
+        b
+    }
+
+    /// Origins, reciprocal directions and `t0` only: enough for box and frustum tests;
+    /// `uniform` stays false until [`RayBlock::prepare_space`].
+    #[inline]
+    pub(crate) fn base(rays: &[Ray], t_min: &[f32]) -> Self {
         let n = rays.len().min(LANES);
         debug_assert!(n > 0 && t_min.len() >= n);
-        let mut f = [[0f32; LANES]; 10];
+        let mut f = [[0f32; LANES]; 7];
         for l in 0..LANES {
             let r = &rays[if l < n { l } else { 0 }];
             f[0][l] = r.origin.x;
             f[1][l] = r.origin.y;
             f[2][l] = r.origin.z;
-            f[3][l] = r.dir.x;
-            f[4][l] = r.dir.y;
-            f[5][l] = r.dir.z;
-            f[6][l] = r.inv_dir.x;
-            f[7][l] = r.inv_dir.y;
-            f[8][l] = r.inv_dir.z;
-            f[9][l] = if l < n { t_min[l] } else { f32::INFINITY };
+            f[3][l] = r.inv_dir.x;
+            f[4][l] = r.inv_dir.y;
+            f[5][l] = r.inv_dir.z;
+            f[6][l] = if l < n { t_min[l] } else { f32::INFINITY };
         }
         let v = f.map(f32x8::new);
-        let d = [v[3], v[4], v[5]];
+        Self {
+            o: [v[0], v[1], v[2]],
+            inv: [v[3], v[4], v[5]],
+            t0: v[6],
+            ..Self::EMPTY
+        }
+    }
+
+    /// The watertight ray space of the block's `rays` (the same rays as in
+    /// [`RayBlock::base`]): [`super::mt::RaySpace::new`] computed 8 lanes at a time (same
+    /// operations, same bits). Only the isopolygon test needs it.
+    #[inline]
+    pub(crate) fn prepare_space(&mut self, rays: &[Ray]) {
+        let n = rays.len().min(LANES);
+        debug_assert!(n > 0);
+        let mut f = [[0f32; LANES]; 3];
+        for l in 0..LANES {
+            let r = &rays[if l < n { l } else { 0 }];
+            f[0][l] = r.dir.x;
+            f[1][l] = r.dir.y;
+            f[2][l] = r.dir.z;
+        }
+        let d = f.map(f32x8::new);
         // Dominant axis per lane with the tie-breaking of `RaySpace::new`.
         let a = d.map(f32x8::abs);
         let x_dom = (a[0].simd_ge(a[1]) & a[0].simd_ge(a[2])).to_bitmask();
@@ -84,18 +111,14 @@ impl RayBlock {
         };
         let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
         let dz = d[kz];
+        let o = self.o;
         let finite = d[0].is_finite() & d[1].is_finite() & d[2].is_finite();
-        let finite = finite & v[0].is_finite() & v[1].is_finite() & v[2].is_finite();
+        let finite = finite & o[0].is_finite() & o[1].is_finite() & o[2].is_finite();
         let valid = finite.to_bitmask() & !dz.simd_eq(f32x8::ZERO).to_bitmask();
         let all = (1u32 << LANES) - 1;
-        Self {
-            o: [v[0], v[1], v[2]],
-            inv: [v[6], v[7], v[8]],
-            t0: v[9],
-            k: [kx, ky, kz],
-            s: [d[kx] / dz, d[ky] / dz, f32x8::ONE / dz],
-            uniform: lane_axis[kz] & all == all && valid & all == all,
-        }
+        self.k = [kx, ky, kz];
+        self.s = [d[kx] / dz, d[ky] / dz, f32x8::ONE / dz];
+        self.uniform = lane_axis[kz] & all == all && valid & all == all;
     }
 }
 

@@ -21,22 +21,29 @@
 //!    against rays `first..`.
 //!
 //! Refinement: the packet is also split into sub-frusta of 16 consecutive rays (4×4 blocks
-//! of a Morton-ordered tile). The first-active search (4) and the isopolygon culling (5)
-//! skip whole sub-frusta that miss, so a node or polygon much smaller than the packet costs
-//! a few group tests instead of a scan over 256 rays.
+//! of a Morton-ordered tile), held in SoA form so that one call tests a box against all 16
+//! at once (8 per `f32x8`). The first-active search (4) and the isopolygon culling (5)
+//! visit only the sub-frusta that may meet the box or polygon, so a node or polygon much
+//! smaller than the packet costs a few block tests instead of a scan over 256 rays.
+//! Front-to-back, a sub-frustum's range end is lowered to its rays' nearest hit after each
+//! leaf with hits (and the packet's with it): once a region of the packet has found the
+//! surface, nodes behind it are culled by one frustum test instead of per-ray tests.
 //!
 //! The rays are held as 8-wide SoA blocks ([`super::simd`]): the first-active search tests
 //! 8 rays per step and each isopolygon is tested against 8 rays at once, with results
-//! bit-identical to the scalar tests. A packet whose root isorange holds no isovalue, or
-//! whose frustum misses the root box, returns before any per-ray setup.
+//! bit-identical to the scalar tests. A block's watertight ray space (dominant axis, shear:
+//! three divisions) is set up at its first isopolygon test, so blocks that never reach one
+//! skip it. A packet whose root isorange holds no isovalue returns before any per-ray
+//! setup; one whose frustum misses the root box right after the block and sub-frustum setup.
 //!
 //! Packets of at most 4 rays run the *standard* packet traversal instead (every ray tested
 //! at every node with the scalar slab test, descend if any hits; one extraction per tet for
 //! the packet): the 2×2 baseline of Table 8.4.
 //!
 //! ## Statistics
-//! `box_test` counts individual ray–box tests (an interval frustum test counts as one, an
-//! 8-wide block test as the number of rays it tests),
+//! `box_test` counts individual ray–box tests (an interval frustum test counts as one, the
+//! all-sub-frusta test as the number of sub-frusta it tests, an 8-wide block test as the
+//! number of rays it tests),
 //! `intersection` ray–isopolygon tests, `extraction` isopolygon extractions, `node` and
 //! `leaf` visits.
 
@@ -46,7 +53,7 @@ use glam::Vec3;
 use wide::f32x8;
 
 use super::bvh::{BvhNode, MAX_DEPTH};
-use super::mt::{self, RaySpace};
+use super::mt::{self, IsoPoly, RaySpace};
 use super::scene::TetScene;
 use super::simd::{LANES, RayBlock, poly8, slab8};
 use crate::math::{Ray, float::gamma_f32};
@@ -247,7 +254,137 @@ impl Frustum {
     }
 }
 
+/// The sub-frusta of a packet in SoA form, 8 groups per `f32x8`: [`GroupSet::hits`] tests a
+/// box against all 16 at once with the operations of [`Frustum::misses`] per lane.
+#[derive(Clone, Copy)]
+struct GroupSet {
+    /// Per half (groups 0–7, 8–15): origin min/max, reciprocal min/max per axis.
+    omin: [[f32x8; 3]; 2],
+    omax: [[f32x8; 3]; 2],
+    imin: [[f32x8; 3]; 2],
+    imax: [[f32x8; 3]; 2],
+    /// All-ones lanes where the axis is used (as `Frustum::axis`).
+    axis: [[f32x8; 3]; 2],
+    t0: [f32x8; 2],
+    t1: [f32x8; 2],
+    /// Bit `g` set for the groups in use.
+    valid: u32,
+}
+
+impl GroupSet {
+    const NONE: GroupSet = GroupSet {
+        omin: [[f32x8::ZERO; 3]; 2],
+        omax: [[f32x8::ZERO; 3]; 2],
+        imin: [[f32x8::ZERO; 3]; 2],
+        imax: [[f32x8::ZERO; 3]; 2],
+        axis: [[f32x8::ZERO; 3]; 2],
+        t0: [f32x8::ZERO; 2],
+        t1: [f32x8::ZERO; 2],
+        valid: 0,
+    };
+
+    fn new(groups: &[Frustum]) -> Self {
+        debug_assert!(groups.len() <= MAX_GROUPS);
+        // Rows: omin xyz, omax xyz, imin xyz, imax xyz, axis xyz, t0, t1.
+        let mut r = [[0f32; MAX_GROUPS]; 17];
+        // Unused groups: an empty range (their bits are also cleared by `valid`).
+        r[15] = [f32::INFINITY; MAX_GROUPS];
+        r[16] = [f32::NEG_INFINITY; MAX_GROUPS];
+        for (g, f) in groups.iter().enumerate() {
+            for a in 0..3 {
+                r[a][g] = f.omin[a];
+                r[3 + a][g] = f.omax[a];
+                r[6 + a][g] = f.imin[a];
+                r[9 + a][g] = f.imax[a];
+                r[12 + a][g] = f32::from_bits(if f.axis[a] { u32::MAX } else { 0 });
+            }
+            r[15][g] = f.t0;
+            r[16][g] = f.t1;
+        }
+        let half = |row: &[f32; MAX_GROUPS], h: usize| {
+            f32x8::new(std::array::from_fn(|l| row[h * LANES + l]))
+        };
+        let xyz = |k: usize| [0, 1].map(|h| [0, 1, 2].map(|a| half(&r[k + a], h)));
+        GroupSet {
+            omin: xyz(0),
+            omax: xyz(3),
+            imin: xyz(6),
+            imax: xyz(9),
+            axis: xyz(12),
+            t0: [0, 1].map(|h| half(&r[15], h)),
+            t1: [0, 1].map(|h| half(&r[16], h)),
+            valid: (1u32 << groups.len()) - 1,
+        }
+    }
+
+    /// Bit `g` set for the groups that may meet the box `[lo, hi]` (`!misses`, conservative).
+    #[inline]
+    fn hits(&self, lo: Vec3, hi: Vec3) -> u32 {
+        let mut m = 0;
+        let zero = f32x8::ZERO;
+        for h in 0..(if self.valid >> LANES == 0 { 1 } else { 2 }) {
+            let mut enter = self.t0[h];
+            let mut exit = self.t1[h];
+            for a in 0..3 {
+                let (i0, i1) = (self.imin[h][a], self.imax[h][a]);
+                let (l, u) = (f32x8::splat(lo[a]), f32x8::splat(hi[a]));
+                let pos = i0.simd_gt(zero);
+                let near = pos.select(l, u);
+                let far = pos.select(u, l);
+                let (x0, x1) = (near - self.omax[h][a], near - self.omin[h][a]);
+                let tn = (x0 * i0).min(x0 * i1).min(x1 * i0).min(x1 * i1);
+                let (y0, y1) = (far - self.omax[h][a], far - self.omin[h][a]);
+                let tf = (y0 * i0).max(y0 * i1).max(y1 * i0).max(y1 * i1);
+                let used = self.axis[h][a];
+                enter = enter.max(used.select(tn, f32x8::NEG_INFINITY));
+                exit = exit.min(used.select(tf, f32x8::INFINITY));
+            }
+            let margin = f32x8::splat(1e-5) * enter.abs().max(exit.abs()) + f32x8::splat(1e-30);
+            let miss = (enter - exit).simd_gt(margin).to_bitmask();
+            m |= (!miss & 0xff) << (h * LANES);
+        }
+        m & self.valid
+    }
+
+    /// Lowers group `g`'s range end to `t1` (after hits shortened its rays).
+    #[inline]
+    fn set_t1(&mut self, g: usize, t1: f32) {
+        self.t1[g / LANES].as_mut_array()[g % LANES] = t1;
+    }
+}
+
 impl TetScene {
+    /// Calls `f(tet, surface, polygon, stats)` for every non-empty isopolygon of the leaf's
+    /// tets: per tet an isorange test per isovalue, then the on-the-fly extraction (§8.2.4);
+    /// NaN-valued tets are void. The one leaf prologue of all traversals.
+    #[inline]
+    fn leaf_polys<S: Stats>(
+        &self,
+        n: &BvhNode,
+        iso: &[f32],
+        stats: &mut S,
+        mut f: impl FnMut(u32, u32, &IsoPoly, &mut S),
+    ) {
+        for ti in n.link..n.link + n.count {
+            let ids = &self.tets[ti as usize];
+            let v = ids.map(|i| self.verts[i as usize]);
+            if v.iter().any(|p| p.w.is_nan()) {
+                continue;
+            }
+            let lo = v[0].w.min(v[1].w).min(v[2].w.min(v[3].w));
+            let hi = v[0].w.max(v[1].w).max(v[2].w.max(v[3].w));
+            for (s, &c) in iso.iter().enumerate() {
+                if !(lo <= c && c <= hi) {
+                    continue;
+                }
+                stats.extraction();
+                if let Some(poly) = mt::extract(&v, ids, c) {
+                    f(ti, s as u32, &poly, stats);
+                }
+            }
+        }
+    }
+
     /// Tests the isopolygons of leaf tets against one ray, updating `best`.
     #[inline]
     fn leaf_single<S: Stats>(
@@ -260,37 +397,21 @@ impl TetScene {
         iso: &[f32],
         stats: &mut S,
     ) {
-        for ti in n.link..n.link + n.count {
-            let ids = &self.tets[ti as usize];
-            let v = ids.map(|i| self.verts[i as usize]);
-            let lo = v[0].w.min(v[1].w).min(v[2].w.min(v[3].w));
-            let hi = v[0].w.max(v[1].w).max(v[2].w.max(v[3].w));
-            if v.iter().any(|p| p.w.is_nan()) {
-                continue;
+        self.leaf_polys(n, iso, stats, |ti, s, poly, stats| {
+            stats.intersection();
+            if let Some(t) = mt::intersect(rs, poly)
+                && t >= t_min
+                && t <= *best
+                && hit.is_none_or(|h| t < h.t)
+            {
+                *best = t;
+                *hit = Some(RawHit {
+                    t,
+                    surface: s,
+                    tet: ti,
+                });
             }
-            for (s, &c) in iso.iter().enumerate() {
-                if !(lo <= c && c <= hi) {
-                    continue;
-                }
-                stats.extraction();
-                let Some(poly) = mt::extract(&v, ids, c) else {
-                    continue;
-                };
-                stats.intersection();
-                if let Some(t) = mt::intersect(rs, &poly)
-                    && t >= t_min
-                    && t <= *best
-                    && hit.is_none_or(|h| t < h.t)
-                {
-                    *best = t;
-                    *hit = Some(RawHit {
-                        t,
-                        surface: s as u32,
-                        tet: ti,
-                    });
-                }
-            }
-        }
+        });
     }
 
     /// Front-to-back single-ray traversal. With `ANY`, returns at the first hit found.
@@ -461,39 +582,23 @@ impl TetScene {
         iso: &[f32],
         stats: &mut S,
     ) {
-        for ti in n.link..n.link + n.count {
-            let ids = &self.tets[ti as usize];
-            let v = ids.map(|i| self.verts[i as usize]);
-            if v.iter().any(|p| p.w.is_nan()) {
-                continue;
-            }
-            let lo = v[0].w.min(v[1].w).min(v[2].w.min(v[3].w));
-            let hi = v[0].w.max(v[1].w).max(v[2].w.max(v[3].w));
-            for (s, &c) in iso.iter().enumerate() {
-                if !(lo <= c && c <= hi) {
-                    continue;
-                }
-                stats.extraction();
-                let Some(poly) = mt::extract(&v, ids, c) else {
-                    continue;
-                };
-                for i in first..rs.len() {
-                    stats.intersection();
-                    if let Some(t) = mt::intersect(&rs[i], &poly)
-                        && t >= t_min[i]
-                        && t <= best[i]
-                        && out[i].is_none_or(|h| t < h.t)
-                    {
-                        best[i] = t;
-                        out[i] = Some(RawHit {
-                            t,
-                            surface: s as u32,
-                            tet: ti,
-                        });
-                    }
+        self.leaf_polys(n, iso, stats, |ti, s, poly, stats| {
+            for i in first..rs.len() {
+                stats.intersection();
+                if let Some(t) = mt::intersect(&rs[i], poly)
+                    && t >= t_min[i]
+                    && t <= best[i]
+                    && out[i].is_none_or(|h| t < h.t)
+                {
+                    best[i] = t;
+                    out[i] = Some(RawHit {
+                        t,
+                        surface: s,
+                        tet: ti,
+                    });
                 }
             }
-        }
+        });
     }
 
     /// The large-packet traversal (module docs) on 8-ray SIMD blocks.
@@ -515,12 +620,14 @@ impl TetScene {
             blocks,
             best,
             groups,
+            gs,
         } = sc;
         let blocks = &mut blocks[..nb];
         let best = &mut best[..nb];
         for (b, (blk, bt)) in blocks.iter_mut().zip(best.iter_mut()).enumerate() {
             let (s, e) = (b * LANES, ((b + 1) * LANES).min(len));
-            *blk = RayBlock::new(&rays[s..e], &t_min[s..e]);
+            // The ray space waits for the block's first polygon test (`spaced`).
+            *blk = RayBlock::base(&rays[s..e], &t_min[s..e]);
             *bt = f32x8::new(std::array::from_fn(|l| {
                 if s + l < e {
                     t_max[s + l]
@@ -529,16 +636,18 @@ impl TetScene {
                 }
             }));
         }
+        let mut spaced = 0u32;
         for (g, fr) in groups[..ng].iter_mut().enumerate() {
             let (s, e) = (g * GROUP / LANES, ((g + 1) * GROUP / LANES).min(nb));
             *fr = Frustum::from_blocks(&blocks[s..e], &best[s..e]);
         }
-        let groups = &groups[..ng];
-        let fr = Frustum::union(groups);
+        let mut fr = Frustum::union(&groups[..ng]);
         let root = self.bvh.root();
         if fr.misses(root.lo.truncate(), root.hi.truncate()) {
             return;
         }
+        let gs: &mut GroupSet = gs;
+        *gs = GroupSet::new(&groups[..ng]);
         let nodes = &self.bvh.nodes;
         let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
         let mut sp = 0;
@@ -562,27 +671,32 @@ impl TetScene {
                         if fr.misses(lo, hi) {
                             break 'visit;
                         }
-                        // First-active tracking, 8 rays at a time, skipping sub-frusta.
+                        // First-active tracking: the sub-frusta that may meet the box (all
+                        // at once), then their rays 8 at a time.
+                        let from = first + 1;
+                        let after = !0u32 << (from / GROUP).min(31);
+                        let mut gm = gs.valid & after;
+                        if ng > 1 && gm != 0 {
+                            stats.box_test(u64::from(gm.count_ones()));
+                            gm &= gs.hits(lo, hi);
+                        }
                         let mut found = None;
-                        let mut i = first + 1;
-                        while i < len {
-                            let g = i / GROUP;
-                            if ng > 1 {
-                                stats.box_test(1);
-                                if groups[g].misses(lo, hi) {
-                                    i = (g + 1) * GROUP;
-                                    continue;
+                        'search: while gm != 0 {
+                            let g = gm.trailing_zeros() as usize;
+                            gm &= gm - 1;
+                            let mut i = (g * GROUP).max(from);
+                            let end = ((g + 1) * GROUP).min(len);
+                            while i < end {
+                                let b = i / LANES;
+                                let e = ((b + 1) * LANES).min(len);
+                                stats.box_test((e - i) as u64);
+                                let m = slab8(n, &blocks[b], best[b]) & (!0u32 << (i % LANES));
+                                if m != 0 {
+                                    found = Some(b * LANES + m.trailing_zeros() as usize);
+                                    break 'search;
                                 }
+                                i = e;
                             }
-                            let b = i / LANES;
-                            let e = ((b + 1) * LANES).min(len);
-                            stats.box_test((e - i) as u64);
-                            let m = slab8(n, &blocks[b], best[b]) & (!0u32 << (i % LANES));
-                            if m != 0 {
-                                found = Some(b * LANES + m.trailing_zeros() as usize);
-                                break;
-                            }
-                            i = e;
                         }
                         match found {
                             Some(i) => first = i,
@@ -592,9 +706,23 @@ impl TetScene {
                 }
                 if n.is_leaf() {
                     stats.leaf();
-                    self.leaf_large(
-                        n, rays, t_min, blocks, best, first, &fr, groups, out, iso, stats,
+                    let hit_groups = self.leaf_large(
+                        n,
+                        rays,
+                        t_min,
+                        blocks,
+                        &mut spaced,
+                        best,
+                        first,
+                        &fr,
+                        gs,
+                        out,
+                        iso,
+                        stats,
                     );
+                    if hit_groups != 0 {
+                        tighten(gs, &mut fr, best, hit_groups);
+                    }
                     break 'visit;
                 }
                 // Implicit descent: geometric tests only at bifurcation nodes.
@@ -637,8 +765,9 @@ impl TetScene {
     }
 
     /// Leaf of the large-packet traversal: per tet an isorange test per isovalue, the
-    /// isopolygon extracted on the fly, culled against the packet and sub-frusta (§8.2.3),
-    /// then tested against the active rays 8 at a time.
+    /// isopolygon extracted on the fly, culled against the packet frustum and then against
+    /// all sub-frusta at once (§8.2.3), then tested against the active rays 8 at a time.
+    /// Returns the groups (bit `g`) where some ray found a nearer hit.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn leaf_large<S: Stats>(
@@ -646,48 +775,39 @@ impl TetScene {
         n: &BvhNode,
         rays: &[Ray],
         t_min: &[f32],
-        blocks: &[RayBlock],
+        blocks: &mut [RayBlock],
+        spaced: &mut u32,
         best: &mut [f32x8],
         first: usize,
         fr: &Frustum,
-        groups: &[Frustum],
+        gs: &GroupSet,
         out: &mut [Option<RawHit>],
         iso: &[f32],
         stats: &mut S,
-    ) {
+    ) -> u32 {
         let len = rays.len();
-        for ti in n.link..n.link + n.count {
-            let ids = &self.tets[ti as usize];
-            let v = ids.map(|i| self.verts[i as usize]);
-            if v.iter().any(|p| p.w.is_nan()) {
-                continue;
+        let mut hit_groups = 0u32;
+        let from_group = gs.valid & (!0u32 << (first / GROUP));
+        self.leaf_polys(n, iso, stats, |ti, s, poly, stats| {
+            let (plo, phi) = poly.bounds();
+            if fr.misses(plo, phi) {
+                return;
             }
-            let lo = v[0].w.min(v[1].w).min(v[2].w.min(v[3].w));
-            let hi = v[0].w.max(v[1].w).max(v[2].w.max(v[3].w));
-            for (s, &c) in iso.iter().enumerate() {
-                if !(lo <= c && c <= hi) {
-                    continue;
-                }
-                stats.extraction();
-                let Some(poly) = mt::extract(&v, ids, c) else {
-                    continue;
-                };
-                let (plo, phi) = poly.bounds();
-                if fr.misses(plo, phi) {
-                    continue;
-                }
-                let hit = |t: f32| RawHit {
-                    t,
-                    surface: s as u32,
-                    tet: ti,
-                };
-                let mut i = first;
-                while i < len {
-                    let g = i / GROUP;
-                    if groups.len() > 1 && groups[g].misses(plo, phi) {
-                        i = (g + 1) * GROUP;
-                        continue;
-                    }
+            let mut gm = from_group;
+            if from_group & !1 != 0 {
+                gm &= gs.hits(plo, phi);
+            }
+            let hit = |t: f32| RawHit {
+                t,
+                surface: s,
+                tet: ti,
+            };
+            while gm != 0 {
+                let g = gm.trailing_zeros() as usize;
+                gm &= gm - 1;
+                let mut i = (g * GROUP).max(first);
+                let end = ((g + 1) * GROUP).min(len);
+                while i < end {
                     let b = i / LANES;
                     let e = ((b + 1) * LANES).min(len);
                     if S::ENABLED {
@@ -695,9 +815,14 @@ impl TetScene {
                             stats.intersection();
                         }
                     }
+                    if *spaced >> b & 1 == 0 {
+                        // First polygon test of this block: its ray space, once per packet.
+                        blocks[b].prepare_space(&rays[b * LANES..e]);
+                        *spaced |= 1 << b;
+                    }
                     let blk = &blocks[b];
                     if blk.uniform {
-                        let (t, m) = poly8(blk, &poly, best[b]);
+                        let (t, m) = poly8(blk, poly, best[b]);
                         let mut m = m & (!0u32 << (i % LANES));
                         if m != 0 {
                             let t = t.to_array();
@@ -709,6 +834,7 @@ impl TetScene {
                                 if out[r].is_none_or(|h| t[l] < h.t) {
                                     bb[l] = t[l];
                                     out[r] = Some(hit(t[l]));
+                                    hit_groups |= 1 << g;
                                 }
                             }
                         }
@@ -718,21 +844,51 @@ impl TetScene {
                         for r in i..e {
                             let rs = RaySpace::new(rays[r].origin, rays[r].dir);
                             let l = r % LANES;
-                            if let Some(t) = mt::intersect(&rs, &poly)
+                            if let Some(t) = mt::intersect(&rs, poly)
                                 && t >= t_min[r]
                                 && t <= bb[l]
                                 && out[r].is_none_or(|h| t < h.t)
                             {
                                 bb[l] = t;
                                 out[r] = Some(hit(t));
+                                hit_groups |= 1 << g;
                             }
                         }
                     }
                     i = e;
                 }
             }
-        }
+        });
+        hit_groups
     }
+}
+
+/// After hits in `hit_groups`: lowers those sub-frusta's range ends to their rays' nearest
+/// hits so far (front-to-back, nothing farther can matter), and the packet's with them.
+/// Groups with a NaN range end keep theirs (`Frustum::from_blocks` made it infinite).
+fn tighten(gs: &mut GroupSet, fr: &mut Frustum, best: &[f32x8], hit_groups: u32) {
+    let per = GROUP / LANES;
+    let mut m = hit_groups;
+    while m != 0 {
+        let g = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let blocks = &best[g * per..((g + 1) * per).min(best.len())];
+        if blocks.iter().any(|b| b.is_nan().to_bitmask() != 0) {
+            continue;
+        }
+        let t1 = blocks
+            .iter()
+            .fold(f32x8::NEG_INFINITY, |a, &b| a.max(b))
+            .to_array()
+            .into_iter()
+            .fold(f32::NEG_INFINITY, f32::max);
+        gs.set_t1(g, t1);
+    }
+    fr.t1 = gs.t1[0]
+        .max(gs.t1[1])
+        .to_array()
+        .into_iter()
+        .fold(f32::NEG_INFINITY, f32::max);
 }
 
 /// Per-thread buffers of the large-packet traversal (no allocation or large clearing per
@@ -741,6 +897,7 @@ pub(crate) struct PacketScratch {
     blocks: Box<[RayBlock; MAX_BLOCKS]>,
     best: Box<[f32x8; MAX_BLOCKS]>,
     groups: Box<[Frustum; MAX_GROUPS]>,
+    gs: Box<GroupSet>,
 }
 
 impl PacketScratch {
@@ -749,6 +906,7 @@ impl PacketScratch {
             blocks: Box::new([RayBlock::EMPTY; MAX_BLOCKS]),
             best: Box::new([f32x8::ZERO; MAX_BLOCKS]),
             groups: Box::new([Frustum::NONE; MAX_GROUPS]),
+            gs: Box::new(GroupSet::NONE),
         }
     }
 }
