@@ -6,7 +6,7 @@
 //! - [`settings`]: [`Surface`]s (isovalue, colour, opacity), [`ClipRegion`]s, the [`Light`]
 //!   and [`RenderSettings`].
 //! - [`clip`]: the kept parameter intervals of a ray under any number of clip regions.
-//! - [`renderer`]: [`render`] — tiles over rayon, primary packets, transparency by depth
+//! - [`renderer`]: [`render`] / [`render_into`] (reuses the frame's buffers) — tiles over rayon, primary packets, transparency by depth
 //!   peeling, shadow rays, progressive scale, cancellation — producing a [`Frame`]
 //!   (RGBA8 + first-hit depth + statistics).
 //! - [`analytic`]: an exact sphere-field scene, the truth for renderer tests.
@@ -23,7 +23,7 @@ pub mod settings;
 mod shade;
 
 pub use camera::{Camera, CameraError, Projection, RayGen};
-pub use renderer::{Frame, RayCounts, TILE, render};
+pub use renderer::{Frame, RayCounts, TILE, render, render_into};
 pub use scene::{CountStats, Hit, IsoScene, NoStats, Stats, TraversalCounts};
 pub use settings::{
     ClipRegion, Keep, Light, LightKind, MAX_IMAGE_SIDE, RenderSettings, SettingsError, Surface,

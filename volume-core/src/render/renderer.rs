@@ -1,23 +1,30 @@
 //! The tiled renderer: primary packets, transparency peeling, shadows and clipping.
 //!
 //! The image is cut into tiles of 16×16 *samples* (a sample is one pixel, or one
-//! `scale × scale` block when rendering progressively) that rayon renders in parallel; each
-//! tile is independent, so the output is the same whatever the thread count or schedule.
+//! `scale × scale` block when rendering progressively). A row of tiles is a *band* of the
+//! frame; rayon renders the bands in parallel (`par_chunks_mut` over the frame's buffers) and
+//! each band renders its tiles left to right straight into its own rows, so there is no
+//! serial assembly pass and no per-tile output buffer. Each tile is independent, so the
+//! output is the same whatever the thread count or schedule. [`render_into`] reuses the
+//! caller's [`Frame`] buffers; [`render`] allocates a new one.
 //!
 //! Inside a tile, rays are ordered along a Morton curve, so every aligned run of 4, 8, 16, …
 //! rays covers a compact 2×2, 4×2, 4×4, … block (good packets for 4- and 8-wide SIMD
-//! traversal and for frusta). Each sample's ray is first cut to the volume bounds and the
-//! kept clip intervals ([`super::clip`]). Then the tile runs in *rounds*: every still-active
-//! ray is traced from its current `t_from` to the end of its current interval, all together
-//! through `IsoScene::first_hit_packet`. A hit is shaded and composited front to back; an
-//! opaque hit (or the layer limit) ends the ray, a transparent one re-shoots the same ray
-//! with the minimum distance just past the hit (thesis seed 004 §8.6, "transparent depth
-//! peeling": the packet is re-used with a per-ray minimum distance). A miss moves the ray to
-//! its next kept interval. Shadow rays (`IsoScene::occluded`) are cast one by one.
+//! traversal and for frusta). Rays come from per-column and per-row camera terms computed
+//! once per tile ([`RayGen::column`], [`RayGen::row`]), bit-identical to
+//! [`RayGen::ray_at`]. Each sample's ray is first cut to the volume bounds and, only when
+//! there are clip regions, to the kept clip intervals ([`super::clip`]). Then the tile runs
+//! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
+//! current interval, all together through `IsoScene::first_hit_packet` (the first round's
+//! packet is built while the rays are generated). A hit is shaded and composited front to
+//! back; an opaque hit (or the layer limit) ends the ray, a transparent one re-shoots the
+//! same ray with the minimum distance just past the hit (thesis seed 004 §8.6, "transparent
+//! depth peeling": the packet is re-used with a per-ray minimum distance). A miss moves the
+//! ray to its next kept interval. Shadow rays (`IsoScene::occluded`) are cast one by one.
 //!
 //! Statistics and shadows are compile-time parameters, so when they are off their code is not
 //! in the loop at all. Per-tile buffers live in a per-thread scratch that is reused: nothing
-//! is allocated per ray.
+//! is allocated per ray or per tile.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -57,8 +64,8 @@ impl RayCounts {
     }
 }
 
-/// A rendered image.
-#[derive(Debug, Clone, PartialEq)]
+/// A rendered image. `Frame::default()` is an empty frame to hand to [`render_into`].
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Frame {
     pub width: u32,
     pub height: u32,
@@ -86,12 +93,31 @@ pub fn render<S: IsoScene>(
     settings: &RenderSettings,
     cancel: &AtomicBool,
 ) -> Option<Frame> {
+    let mut frame = Frame::default();
+    render_into(scene, camera, settings, cancel, &mut frame).then_some(frame)
+}
+
+/// [`render`] into an existing frame, reusing its buffers (no allocation once they are big
+/// enough: interactive callers keep one or two frames and render into them).
+///
+/// Returns `false` if `cancel` was set before the frame finished; the frame's contents are
+/// then unspecified (partly the new picture), but it stays a valid buffer to render into
+/// again. On `true` every field of `frame` describes the new picture.
+pub fn render_into<S: IsoScene>(
+    scene: &S,
+    camera: &Camera,
+    settings: &RenderSettings,
+    cancel: &AtomicBool,
+    frame: &mut Frame,
+) -> bool {
     let shadows = settings.shadows && Shader::new(&settings.light).casts_shadows();
     match (settings.collect_stats, shadows) {
-        (false, false) => render_impl::<S, NoStats, false>(scene, camera, settings, cancel),
-        (false, true) => render_impl::<S, NoStats, true>(scene, camera, settings, cancel),
-        (true, false) => render_impl::<S, CountStats, false>(scene, camera, settings, cancel),
-        (true, true) => render_impl::<S, CountStats, true>(scene, camera, settings, cancel),
+        (false, false) => render_impl::<S, NoStats, false>(scene, camera, settings, cancel, frame),
+        (false, true) => render_impl::<S, NoStats, true>(scene, camera, settings, cancel, frame),
+        (true, false) => {
+            render_impl::<S, CountStats, false>(scene, camera, settings, cancel, frame)
+        }
+        (true, true) => render_impl::<S, CountStats, true>(scene, camera, settings, cancel, frame),
     }
 }
 
@@ -110,21 +136,23 @@ struct Ctx<'a> {
     scale: u32,
     samples: [u32; 2],
     max_layers: u32,
+    /// `(dx, dy)` of a tile's samples in Morton order.
+    order: Vec<[u32; 2]>,
 }
 
+/// One sample's progress through the rounds (its ray is `Scratch::tile_rays[pos]`).
 #[derive(Debug, Clone, Copy)]
 struct RayState {
-    ray: Ray,
-    /// Sample coordinates in the (possibly coarse) sample grid.
-    sample: [u32; 2],
     /// Current and end index into `Scratch::intervals`.
     iv: u32,
     iv_end: u32,
     t_from: f32,
     color: Vec3,
     transmittance: f32,
-    layers: u32,
     depth: f32,
+    layers: u32,
+    /// Position in the tile, `dy · TILE + dx`.
+    pos: u8,
     done: bool,
 }
 
@@ -132,9 +160,12 @@ struct RayState {
 #[derive(Default)]
 struct Scratch {
     states: Vec<RayState>,
+    /// The tile's primary rays, row-major (`dy · TILE + dx`).
+    tile_rays: Vec<Ray>,
     intervals: Vec<Interval>,
     clip_out: Vec<Interval>,
     clip_tmp: Vec<Interval>,
+    /// The current round's packet: state indices, rays and segments.
     active: Vec<u32>,
     rays: Vec<Ray>,
     t_min: Vec<f32>,
@@ -142,11 +173,33 @@ struct Scratch {
     hits: Vec<Option<Hit>>,
 }
 
-/// One finished tile, per sample.
-struct TileOut<St> {
-    samples: Vec<([u32; 2], [u8; 4], f32)>,
+/// Statistics and ray counts of a part of the frame.
+struct Tally<St> {
     stats: St,
     rays: RayCounts,
+}
+
+impl<St: Stats> Tally<St> {
+    fn new() -> Self {
+        Self {
+            stats: St::default(),
+            rays: RayCounts::default(),
+        }
+    }
+
+    fn merge(mut self, o: &Self) -> Self {
+        self.stats.merge(&o.stats);
+        self.rays.add(&o.rays);
+        self
+    }
+}
+
+/// One band of the frame: the pixel rows of one row of tiles.
+struct Band<'a> {
+    /// Tile row index.
+    index: u32,
+    rgba8: &'a mut [u8],
+    depth: &'a mut [f32],
 }
 
 /// `(dx, dy)` of the `TILE × TILE` samples of a tile in Morton order.
@@ -170,12 +223,13 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     camera: &Camera,
     settings: &RenderSettings,
     cancel: &AtomicBool,
-) -> Option<Frame> {
+    frame: &mut Frame,
+) -> bool {
     let start = Instant::now();
     let (width, height) = (settings.width, settings.height);
     let scale = settings.scale.max(1);
     let samples = [width.div_ceil(scale), height.div_ceil(scale)];
-    let tiles = [samples[0].div_ceil(TILE), samples[1].div_ceil(TILE)];
+    let tiles_x = samples[0].div_ceil(TILE);
     let (isovalues, surface_of) = settings.active_isovalues();
     let bounds = scene.world_bounds();
     let diag = if bounds.is_empty() {
@@ -200,58 +254,59 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         scale,
         samples,
         max_layers: settings.max_layers.max(1),
+        order: morton_order(),
     };
-    let order = morton_order();
-    let n_tiles = (tiles[0] as usize) * (tiles[1] as usize);
-
-    let outs: Vec<Option<TileOut<St>>> = (0..n_tiles)
-        .into_par_iter()
-        .map_init(Scratch::default, |scratch, t| {
-            if cancel.load(Ordering::Relaxed) {
-                return None;
-            }
-            let tile = [t as u32 % tiles[0], t as u32 / tiles[0]];
-            Some(render_tile::<S, St, SHADOWS>(
-                scene, &ctx, &order, tile, scratch,
-            ))
-        })
-        .collect();
-    if cancel.load(Ordering::Relaxed) {
-        return None;
-    }
 
     let pixels = width as usize * height as usize;
-    let mut rgba8 = vec![0u8; pixels * 4];
-    let mut depth = vec![f32::INFINITY; pixels];
-    let mut stats = St::default();
-    let mut rays = RayCounts::default();
-    for out in outs {
-        let out = out?;
-        stats.merge(&out.stats);
-        rays.add(&out.rays);
-        for ([sx, sy], rgba, d) in out.samples {
-            let (x0, y0) = (sx * scale, sy * scale);
-            let (x1, y1) = ((x0 + scale).min(width), (y0 + scale).min(height));
-            for y in y0..y1 {
-                let row = y as usize * width as usize;
-                for x in x0..x1 {
-                    let p = row + x as usize;
-                    rgba8[4 * p..4 * p + 4].copy_from_slice(&rgba);
-                    depth[p] = d;
+    frame.width = width;
+    frame.height = height;
+    frame.scale = scale;
+    // Every pixel is written below: resizing (not clearing) is enough.
+    frame.rgba8.resize(pixels * 4, 0);
+    frame.depth.resize(pixels, f32::INFINITY);
+    let band_rows = TILE as usize * scale as usize;
+    let row_len = width as usize;
+    let tally = if pixels == 0 {
+        Some(Tally::<St>::new())
+    } else {
+        frame
+            .rgba8
+            .par_chunks_mut(band_rows * row_len * 4)
+            .zip(frame.depth.par_chunks_mut(band_rows * row_len))
+            .enumerate()
+            .map_init(Scratch::default, |sc, (index, (rgba8, depth))| {
+                let mut band = Band {
+                    index: index as u32,
+                    rgba8,
+                    depth,
+                };
+                let mut tally = Tally::<St>::new();
+                for tx in 0..tiles_x {
+                    if cancel.load(Ordering::Relaxed) {
+                        return None;
+                    }
+                    render_tile::<S, St, SHADOWS>(scene, &ctx, tx, &mut band, sc, &mut tally);
                 }
-            }
-        }
+                Some(tally)
+            })
+            .reduce(
+                || Some(Tally::new()),
+                |a, b| match (a, b) {
+                    (Some(a), Some(b)) => Some(a.merge(&b)),
+                    _ => None,
+                },
+            )
+    };
+    let Some(tally) = tally else {
+        return false;
+    };
+    if cancel.load(Ordering::Relaxed) {
+        return false;
     }
-    Some(Frame {
-        width,
-        height,
-        scale,
-        rgba8,
-        depth,
-        counts: stats.counts(),
-        rays,
-        elapsed: start.elapsed(),
-    })
+    frame.counts = tally.stats.counts();
+    frame.rays = tally.rays;
+    frame.elapsed = start.elapsed();
+    true
 }
 
 #[inline]
@@ -259,94 +314,111 @@ fn to_u8(c: f32) -> u8 {
     (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// Renders tile `tx` of `band` into the band's rows.
 fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     scene: &S,
     ctx: &Ctx<'_>,
-    order: &[[u32; 2]],
-    tile: [u32; 2],
+    tx: u32,
+    band: &mut Band<'_>,
     sc: &mut Scratch,
-) -> TileOut<St> {
-    let mut stats = St::default();
-    let mut rays = RayCounts::default();
+    tally: &mut Tally<St>,
+) {
     let settings = ctx.settings;
     let scale = ctx.scale as f32;
     let (w, h) = (settings.width as f32, settings.height as f32);
+    let tile = [tx, band.index];
+    let n_x = (ctx.samples[0] - tile[0] * TILE).min(TILE);
+    let n_y = (ctx.samples[1] - tile[1] * TILE).min(TILE);
 
-    // 1. Primary rays, cut to the bounds and the kept clip intervals.
+    // 1. Primary rays through the centre of each sample's pixel block (clipped to the
+    //    image), cut to the bounds and the kept clip intervals; the first round's packet.
+    let mut columns = [Vec3::ZERO; TILE as usize];
+    for (dx, c) in columns.iter_mut().enumerate().take(n_x as usize) {
+        let sx = tile[0] * TILE + dx as u32;
+        let x = (sx as f32 * scale + ((sx + 1) as f32 * scale).min(w)) * 0.5;
+        *c = ctx.raygen.column(x);
+    }
+    let mut rows = [Vec3::ZERO; TILE as usize];
+    for (dy, r) in rows.iter_mut().enumerate().take(n_y as usize) {
+        let sy = tile[1] * TILE + dy as u32;
+        let y = (sy as f32 * scale + ((sy + 1) as f32 * scale).min(h)) * 0.5;
+        *r = ctx.raygen.row(y);
+    }
+    sc.tile_rays.resize(
+        TILE as usize * TILE as usize,
+        Ray::new(Vec3::ZERO, Vec3::ONE),
+    );
+    let tile_rows = sc.tile_rays.chunks_exact_mut(TILE as usize);
+    for (row, out) in rows.iter().zip(tile_rows).take(n_y as usize) {
+        let out: &mut [Ray; TILE as usize] = out.try_into().expect("a tile row");
+        ctx.raygen.rays_row(&columns, *row, out);
+    }
     sc.states.clear();
     sc.intervals.clear();
-    for &[dx, dy] in order {
-        let (sx, sy) = (tile[0] * TILE + dx, tile[1] * TILE + dy);
-        if sx >= ctx.samples[0] || sy >= ctx.samples[1] {
+    sc.active.clear();
+    sc.rays.clear();
+    sc.t_min.clear();
+    sc.t_max.clear();
+    let no_clips = settings.clips.is_empty();
+    let traced = !ctx.isovalues.is_empty();
+    for &[dx, dy] in &ctx.order {
+        if dx >= n_x || dy >= n_y {
             continue;
         }
-        // The ray through the centre of the sample's pixel block (clipped to the image).
-        let x = (sx as f32 * scale + ((sx + 1) as f32 * scale).min(w)) * 0.5;
-        let y = (sy as f32 * scale + ((sy + 1) as f32 * scale).min(h)) * 0.5;
-        let ray = ctx.raygen.ray_at(x, y);
-        let range = ctx
-            .bounds
-            .intersect(&ray, 0.0, f32::INFINITY)
-            .map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
-        kept_intervals(
-            &ray,
-            range,
-            &settings.clips,
-            &mut sc.clip_out,
-            &mut sc.clip_tmp,
-        );
+        let pos = dy * TILE + dx;
+        let ray = sc.tile_rays[pos as usize];
+        let range = ctx.bounds.intersect(&ray, 0.0, f32::INFINITY);
         let iv = sc.intervals.len() as u32;
-        sc.intervals.extend_from_slice(&sc.clip_out);
+        if no_clips {
+            // The one kept interval is the bounds range (what `kept_intervals` returns).
+            if let Some((lo, hi)) = range {
+                sc.intervals.push(Interval::new(lo, hi));
+            }
+        } else {
+            let range = range.map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
+            kept_intervals(
+                &ray,
+                range,
+                &settings.clips,
+                &mut sc.clip_out,
+                &mut sc.clip_tmp,
+            );
+            sc.intervals.extend_from_slice(&sc.clip_out);
+        }
         let iv_end = sc.intervals.len() as u32;
+        let done = iv == iv_end || !traced;
+        let t_from = if iv == iv_end {
+            f32::INFINITY
+        } else {
+            sc.intervals[iv as usize].lo
+        };
+        if !done {
+            sc.active.push(sc.states.len() as u32);
+            sc.rays.push(ray);
+            sc.t_min.push(t_from);
+            sc.t_max.push(sc.intervals[iv as usize].hi);
+        }
         sc.states.push(RayState {
-            ray,
-            sample: [sx, sy],
             iv,
             iv_end,
-            t_from: sc.clip_out.first().map_or(f32::INFINITY, |i| i.lo),
+            t_from,
             color: Vec3::ZERO,
             transmittance: 1.0,
-            layers: 0,
             depth: f32::INFINITY,
-            done: iv == iv_end || ctx.isovalues.is_empty(),
+            layers: 0,
+            pos: pos as u8,
+            done,
         });
     }
-    rays.primary = sc.states.len() as u64;
+    tally.rays.primary += sc.states.len() as u64;
 
     // 2. Rounds: trace every active ray's current segment together.
+    let mut first_round = true;
     loop {
-        sc.active.clear();
-        sc.rays.clear();
-        sc.t_min.clear();
-        sc.t_max.clear();
-        for (idx, st) in sc.states.iter_mut().enumerate() {
-            if st.done {
-                continue;
-            }
-            // `t_from` past the interval's end (or NaN): move on.
-            while st.iv < st.iv_end
-                && !matches!(
-                    st.t_from.partial_cmp(&sc.intervals[st.iv as usize].hi),
-                    Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
-                )
-            {
-                st.iv += 1;
-                if st.iv < st.iv_end {
-                    st.t_from = st.t_from.max(sc.intervals[st.iv as usize].lo);
-                }
-            }
-            if st.iv >= st.iv_end {
-                st.done = true;
-                continue;
-            }
-            if st.layers > 0 {
-                rays.transparency += 1;
-            }
-            sc.active.push(idx as u32);
-            sc.rays.push(st.ray);
-            sc.t_min.push(st.t_from);
-            sc.t_max.push(sc.intervals[st.iv as usize].hi);
+        if !first_round {
+            next_round(sc, &mut tally.rays);
         }
+        first_round = false;
         if sc.active.is_empty() {
             break;
         }
@@ -360,7 +432,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 &sc.t_max,
                 &ctx.isovalues,
                 &mut sc.hits,
-                &mut stats,
+                &mut tally.stats,
             );
         } else {
             for k in 0..n {
@@ -369,16 +441,21 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                     sc.t_min[k],
                     sc.t_max[k],
                     &ctx.isovalues,
-                    &mut stats,
+                    &mut tally.stats,
                 );
             }
         }
+        let mut live = 0usize;
         for k in 0..n {
-            let st = &mut sc.states[sc.active[k] as usize];
+            let idx = sc.active[k] as usize;
+            let st = &mut sc.states[idx];
             let Some(hit) = sc.hits[k] else {
                 st.iv += 1;
                 if st.iv < st.iv_end {
                     st.t_from = sc.intervals[st.iv as usize].lo;
+                    live += 1;
+                } else {
+                    st.done = true;
                 }
                 continue;
             };
@@ -397,11 +474,11 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             let rgb = shade_hit::<S, St, SHADOWS>(
                 scene,
                 ctx,
-                &st.ray,
+                &sc.rays[k],
                 &hit,
                 Vec3::from(surface.color),
-                &mut stats,
-                &mut rays,
+                &mut tally.stats,
+                &mut tally.rays,
                 &mut sc.clip_out,
                 &mut sc.clip_tmp,
             );
@@ -413,28 +490,86 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 st.done = true;
             } else {
                 st.t_from = hit.t + ctx.peel_eps + hit.t.abs() * 1e-6;
+                live += 1;
             }
+        }
+        if live == 0 {
+            break;
         }
     }
 
-    // 3. Composite over the background.
+    // 3. Composite over the background, straight into the band.
     let bg = Vec3::from(settings.background);
-    let samples = sc
-        .states
-        .iter()
-        .map(|st| {
+    let row_len = settings.width as usize;
+    let band_rows = band.depth.len() / row_len;
+    let x_tile = (tile[0] * TILE) as usize;
+    let step = ctx.scale as usize;
+    // Samples without a hit show the background: `0 + bg · 1` is `bg`, converted once.
+    let bg_rgba = [to_u8(bg.x), to_u8(bg.y), to_u8(bg.z), 255];
+    for st in &sc.states {
+        let rgba = if st.layers == 0 {
+            bg_rgba
+        } else {
             let c = st.color + bg * st.transmittance;
-            (
-                st.sample,
-                [to_u8(c.x), to_u8(c.y), to_u8(c.z), 255],
-                st.depth,
+            [to_u8(c.x), to_u8(c.y), to_u8(c.z), 255]
+        };
+        let (dx, dy) = (
+            usize::from(st.pos) % TILE as usize,
+            usize::from(st.pos) / TILE as usize,
+        );
+        if step == 1 {
+            let p = dy * row_len + x_tile + dx;
+            band.rgba8[4 * p..4 * p + 4].copy_from_slice(&rgba);
+            band.depth[p] = st.depth;
+            continue;
+        }
+        let x0 = (x_tile + dx) * step;
+        let x1 = (x0 + step).min(row_len);
+        let y0 = dy * step;
+        for y in y0..(y0 + step).min(band_rows) {
+            let row = y * row_len;
+            for p in row + x0..row + x1 {
+                band.rgba8[4 * p..4 * p + 4].copy_from_slice(&rgba);
+                band.depth[p] = st.depth;
+            }
+        }
+    }
+}
+
+/// Builds the next round's packet: every ray not done, at its current `t_from`, moved on to
+/// the next kept interval when `t_from` is past the current one's end.
+fn next_round(sc: &mut Scratch, rays: &mut RayCounts) {
+    sc.active.clear();
+    sc.rays.clear();
+    sc.t_min.clear();
+    sc.t_max.clear();
+    for (idx, st) in sc.states.iter_mut().enumerate() {
+        if st.done {
+            continue;
+        }
+        // `t_from` past the interval's end (or NaN): move on.
+        while st.iv < st.iv_end
+            && !matches!(
+                st.t_from.partial_cmp(&sc.intervals[st.iv as usize].hi),
+                Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
             )
-        })
-        .collect();
-    TileOut {
-        samples,
-        stats,
-        rays,
+        {
+            st.iv += 1;
+            if st.iv < st.iv_end {
+                st.t_from = st.t_from.max(sc.intervals[st.iv as usize].lo);
+            }
+        }
+        if st.iv >= st.iv_end {
+            st.done = true;
+            continue;
+        }
+        if st.layers > 0 {
+            rays.transparency += 1;
+        }
+        sc.active.push(idx as u32);
+        sc.rays.push(sc.tile_rays[usize::from(st.pos)]);
+        sc.t_min.push(st.t_from);
+        sc.t_max.push(sc.intervals[st.iv as usize].hi);
     }
 }
 
@@ -728,6 +863,177 @@ mod tests {
         let quiet = render(&scene, &cam, &settings, &go()).unwrap();
         assert_eq!(quiet.counts, TraversalCounts::default());
         assert_eq!(quiet.rgba8, a.rgba8);
+    }
+
+    /// A serial, per-sample twin of the renderer without shadows: the same camera rays,
+    /// clip intervals, peeling and compositing, one ray at a time with `first_hit`.
+    fn twin(scene: &SphereScene, cam: &Camera, s: &RenderSettings) -> (Vec<u8>, Vec<f32>) {
+        let (w, h, scale) = (s.width, s.height, s.scale);
+        let raygen = RayGen::new(cam, w, h);
+        let shader = Shader::new(&s.light);
+        let (isovalues, surface_of) = s.active_isovalues();
+        let bounds = scene.world_bounds();
+        let peel_eps = bounds.extent().length() * 1e-5;
+        let mut rgba8 = vec![0u8; (w * h * 4) as usize];
+        let mut depth = vec![f32::INFINITY; (w * h) as usize];
+        let (mut ivs, mut tmp) = (Vec::new(), Vec::new());
+        for sy in 0..h.div_ceil(scale) {
+            for sx in 0..w.div_ceil(scale) {
+                let f = |i: u32, n: u32| {
+                    (i as f32 * scale as f32 + ((i + 1) as f32 * scale as f32).min(n as f32)) * 0.5
+                };
+                let ray = raygen.ray_at(f(sx, w), f(sy, h));
+                let range = bounds
+                    .intersect(&ray, 0.0, f32::INFINITY)
+                    .map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
+                kept_intervals(&ray, range, &s.clips, &mut ivs, &mut tmp);
+                let (mut color, mut trans, mut layers) = (Vec3::ZERO, 1.0f32, 0);
+                let mut first_t = f32::INFINITY;
+                let mut t_from = f32::NEG_INFINITY;
+                'ray: for iv in &ivs {
+                    t_from = t_from.max(iv.lo);
+                    while t_from <= iv.hi && !isovalues.is_empty() {
+                        let Some(hit) =
+                            scene.first_hit(&ray, t_from, iv.hi, &isovalues, &mut NoStats)
+                        else {
+                            break;
+                        };
+                        let surf = &s.surfaces[surface_of[hit.surface as usize]];
+                        if layers == 0 {
+                            first_t = hit.t;
+                        }
+                        let n = Shader::facing(hit.normal, ray.dir);
+                        let (l, _) = shader.light_dir(ray.at(hit.t), ray.dir);
+                        let rgb = shader.shade(Vec3::from(surf.color), n, ray.dir, l, 1.0);
+                        color += rgb * (trans * surf.opacity);
+                        trans *= 1.0 - surf.opacity;
+                        layers += 1;
+                        if trans <= OPAQUE_TRANSMITTANCE || layers >= s.max_layers {
+                            break 'ray;
+                        }
+                        t_from = hit.t + peel_eps + hit.t.abs() * 1e-6;
+                    }
+                }
+                let c = color + Vec3::from(s.background) * trans;
+                let px = [to_u8(c.x), to_u8(c.y), to_u8(c.z), 255];
+                for y in sy * scale..((sy + 1) * scale).min(h) {
+                    for x in sx * scale..((sx + 1) * scale).min(w) {
+                        let p = (y * w + x) as usize;
+                        rgba8[4 * p..4 * p + 4].copy_from_slice(&px);
+                        depth[p] = first_t;
+                    }
+                }
+            }
+        }
+        (rgba8, depth)
+    }
+
+    #[test]
+    fn frames_equal_the_serial_twin_for_any_thread_count_and_reused_buffers() {
+        let scene = SphereScene {
+            spheres: vec![(Vec3::ZERO, 1.0), (Vec3::new(0.9, 0.3, 0.2), 0.6)],
+            bounds: cube(2.5),
+        };
+        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let mut reused = Frame::default();
+        let (mut cases, mut hit_cases) = (0, 0);
+        for (k, (w, h, scale)) in [(37, 29, 1), (70, 50, 3), (16, 33, 1), (101, 7, 16)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut cam = Camera::orbit(&cube(2.5), 40.0 + 30.0 * k as f32, 25.0, 40.0);
+            if k == 2 {
+                cam.projection = Projection::Orthographic;
+            }
+            for clips in [
+                vec![],
+                vec![
+                    ClipRegion::Box {
+                        min: Vec3::splat(0.0),
+                        max: Vec3::splat(3.0),
+                        keep: Keep::Outside,
+                    },
+                    ClipRegion::Plane {
+                        normal: Vec3::new(0.2, 1.0, 0.1),
+                        offset: 0.8,
+                    },
+                ],
+            ] {
+                let settings = RenderSettings {
+                    width: w,
+                    height: h,
+                    scale,
+                    surfaces: vec![
+                        Surface {
+                            opacity: 0.5,
+                            ..Surface::new(0.3, [0.2, 0.4, 0.9])
+                        },
+                        Surface::new(0.0, [0.9, 0.7, 0.1]),
+                    ],
+                    clips,
+                    max_layers: 3,
+                    ..RenderSettings::default()
+                };
+                let (rgba8, depth) = twin(&scene, &cam, &settings);
+                hit_cases += usize::from(depth.iter().any(|d| d.is_finite()));
+                for threads in [1, 3] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let f = pool.install(|| render(&scene, &cam, &settings, &go()).unwrap());
+                    assert_eq!(f.rgba8, rgba8, "case {k}, {threads} threads");
+                    assert_eq!(bits(&f.depth), bits(&depth), "case {k}, {threads} threads");
+                    // The same frame into a buffer that held a different picture and size.
+                    assert!(
+                        pool.install(|| {
+                            render_into(&scene, &cam, &settings, &go(), &mut reused)
+                        })
+                    );
+                    assert_eq!(reused.rgba8, rgba8);
+                    assert_eq!(bits(&reused.depth), bits(&depth));
+                    assert_eq!((reused.width, reused.height, reused.scale), (w, h, scale));
+                    assert_eq!(reused.rays, f.rays);
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 16);
+        assert!(
+            hit_cases >= 6,
+            "{hit_cases} of 8 twin frames show a surface"
+        );
+        // Shadows and statistics: independent of the thread count too.
+        let settings = RenderSettings {
+            width: 45,
+            height: 38,
+            surfaces: vec![Surface::new(0.0, [0.9, 0.7, 0.1])],
+            shadows: true,
+            collect_stats: true,
+            light: Light {
+                kind: LightKind::Point {
+                    pos: Vec3::new(4.0, 3.0, 5.0),
+                },
+                ..Light::default()
+            },
+            ..RenderSettings::default()
+        };
+        let cam = Camera::orbit(&cube(2.5), 10.0, 30.0, 40.0);
+        let frames: Vec<Frame> = [1, 2, 3]
+            .map(|threads| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| render(&scene, &cam, &settings, &go()).unwrap())
+            })
+            .into();
+        assert!(frames[0].rays.shadow > 0 && frames[0].counts.rays > 0);
+        for f in &frames[1..] {
+            assert_eq!(f.rgba8, frames[0].rgba8);
+            assert_eq!(bits(&f.depth), bits(&frames[0].depth));
+            assert_eq!((f.counts, f.rays), (frames[0].counts, frames[0].rays));
+        }
     }
 
     #[test]

@@ -71,7 +71,8 @@ impl Shader {
     ) -> Vec3 {
         let l = &self.light;
         let diffuse = Self::lambert(n, to_light) * lit;
-        let specular = if diffuse > 0.0 {
+        // No `powf` when the specular term is off (`0 · x` is `+0` for the finite `x` here).
+        let specular = if diffuse > 0.0 && l.specular != 0.0 {
             let h = (to_light - ray_dir).try_normalize().unwrap_or(n);
             n.dot(h).max(0.0).powf(l.shininess) * lit
         } else {
