@@ -33,7 +33,8 @@
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
-use std::time::{Duration, Instant};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use serde::Serialize;
@@ -790,6 +791,9 @@ fn measure_ooc(args: &Args, s: &Setup, t0: Instant) -> anyhow::Result<BenchRepor
     let open_seconds = o.open_time().as_secs_f64();
     // Before any isovalue only the top treelet is resident: level 0's budget.
     let top = o.status();
+    // Every published level is recorded by the loader's notification (a poll missed
+    // levels that load between two polls), before the first frame requests the isovalues.
+    let levels_seen = record_levels(o);
     let t_request = Instant::now();
     let (_, first_image_level) = o
         .render_with_level(camera, settings, &go)
@@ -797,9 +801,9 @@ fn measure_ooc(args: &Args, s: &Setup, t0: Instant) -> anyhow::Result<BenchRepor
     let first_image_seconds = t0.elapsed().as_secs_f64();
     let finished = {
         let _spinner = Progress::spinner("loading treelets");
-        poll_levels(o, timeout)
+        o.wait_until_finished(timeout)
     };
-    let (finished, mut level_bytes) = finished;
+    let mut level_bytes = levels_seen.lock().expect("level listener").clone();
     if top.loaded_levels == 1
         && let Some(slot) = level_bytes.first_mut()
     {
@@ -868,32 +872,25 @@ fn measure_ooc(args: &Args, s: &Setup, t0: Instant) -> anyhow::Result<BenchRepor
     Ok(report)
 }
 
-/// Waits for the loader (at most `timeout`), sampling the resident bytes of each published
-/// level; returns whether it finished and, per level, the smallest resident size seen with
-/// exactly that many levels (the budget that stops loading there).
-fn poll_levels(o: &OocData, timeout: Duration) -> (bool, Vec<Option<u64>>) {
-    let deadline = Instant::now() + timeout;
-    let mut bytes: Vec<Option<u64>> = vec![None; o.status().level_count];
-    loop {
-        let st = o.status();
-        // Read again: a level published between the two reads pairs the wrong numbers.
-        let levels = st.loaded_levels;
-        let again = o.status();
-        if again.loaded_levels == levels
-            && again.resident_bytes == st.resident_bytes
-            && let Some(slot) = levels.checked_sub(1).and_then(|l| bytes.get_mut(l))
+/// Per level, the smallest resident size published with exactly that many levels (the
+/// budget that stops loading there), recorded by [`OocData`]'s level notification (one
+/// call per published level, however fast it loads).
+fn record_levels(o: &OocData) -> Arc<Mutex<Vec<Option<u64>>>> {
+    let seen = Arc::new(Mutex::new(vec![None; o.status().level_count]));
+    let sink = seen.clone();
+    o.volume().on_level(move |p| {
+        let mut bytes = sink.lock().expect("level listener");
+        if let Some(slot) = p
+            .loaded_levels
+            .checked_sub(1)
+            .and_then(|l| bytes.get_mut(l))
         {
-            *slot = Some(slot.map_or(st.resident_bytes, |b| b.min(st.resident_bytes)));
+            *slot = Some(slot.map_or(p.resident_bytes, |b: u64| b.min(p.resident_bytes)));
         }
-        if st.finished && again.finished {
-            return (true, bytes);
-        }
-        if Instant::now() >= deadline {
-            return (false, bytes);
-        }
-        std::thread::sleep(Duration::from_micros(500));
-    }
+    });
+    seen
 }
+
 fn config_table(s: &mut String, configs: &[ConfigReport], mesh: bool) {
     use std::fmt::Write as _;
     if mesh {

@@ -272,6 +272,10 @@ pub struct Rendered {
     pub ooc_level: Option<(usize, usize)>,
 }
 
+/// Most frames `render` draws while a memory budget pages treelets in (each frame loads
+/// what it missed; a view settles in a few frames per level).
+const MAX_DEMAND_FRAMES: usize = 64;
+
 /// Renders one frame of `scene`. `.isot` scenes first wait (at most `level_timeout`) for
 /// the finest level the isovalues need; a damaged treelet is an error, never a picture.
 pub fn render_scene(
@@ -300,15 +304,34 @@ pub fn render_scene(
             );
         } else if status.budget_limited {
             eprintln!(
-                "warning: the memory budget stopped loading at {} of {} levels (raise --budget-mb)",
+                "note: the memory budget holds {} of {} levels; finer treelets this view needs are paged in over frames (least recently used evicted)",
                 status.loaded_levels, status.level_count
             );
         }
         let (frame, level) = {
             let _spinner = Progress::spinner("rendering");
-            o.render_with_level(camera, settings, &cancel)
-                .context("rendering was cancelled")?
+            let mut out = None;
+            // Demand paging (budget smaller than a level): each frame's missing treelets
+            // load after it; render until a frame pages nothing in.
+            for _ in 0..MAX_DEMAND_FRAMES {
+                let generation = o.volume().generation();
+                out = Some(
+                    o.render_with_level(camera, settings, &cancel)
+                        .context("rendering was cancelled")?,
+                );
+                if !(finished && status.budget_limited) {
+                    break;
+                }
+                o.wait_until_finished(level_timeout);
+                if o.volume().generation() == generation {
+                    break;
+                }
+            }
+            out.expect("one frame")
         };
+        if let Some(e) = o.status().error {
+            bail!("{}: {e}", scene.path().display());
+        }
         return Ok(Rendered {
             frame,
             ooc_level: Some((level, status.level_count)),
@@ -401,6 +424,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
                 count.saturating_sub(1),
                 if level + 1 == count {
                     "finest"
+                } else if o.status().budget_limited {
+                    "the finest complete level within the budget; finer treelets this view needs paged in"
                 } else {
                     "coarser than the finest"
                 },
