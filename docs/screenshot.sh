@@ -1,21 +1,23 @@
 #!/usr/bin/env bash
-# Takes docs/images/viewer.png: starts the Isoscope viewer in a virtual X display (Xvfb),
-# waits until it has rendered, grabs the screen and closes the app.
+# Takes the viewer screenshots in docs/images/: starts the Isoscope viewer in a virtual X
+# display (Xvfb), waits until it has rendered, grabs the screen and closes the app.
 #
 # Installs nothing itself. On a fresh Debian/Ubuntu machine first run (as root):
 #   apt-get install -y xvfb imagemagick xdotool libgl1-mesa-dri libegl1 libegl-mesa0
 # The app uses eframe's glow (OpenGL) renderer, which runs on Mesa's llvmpipe software driver.
 #
-# Usage: docs/screenshot.sh [OUTPUT.png] [-- ISOSCOPE ARGS...]
+# Usage: docs/screenshot.sh                 both shots below
+#        docs/screenshot.sh OUTPUT.png [-- ISOSCOPE ARGS...]   one shot of `isoscope ARGS`
+#   docs/images/viewer.png           the embedded Marschner–Lobb sample (no arguments)
+#   docs/images/screenshot-tet.png   a generated tet mesh (`isoscope generate tet-ball`)
+#                                    restored from a session: point array "gaussians", an
+#                                    opaque isosurface inside a transparent one
 #   ISOSCOPE_BIN  the binary to run (default: target/debug/isoscope, built if missing;
 #                 the dev profile is optimized, see the root Cargo.toml)
 #   WAIT_SECONDS  how long to let the app load and render before the shot (default 25)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
-out="${1:-docs/images/viewer.png}"
-shift || true
-[[ "${1:-}" == "--" ]] && shift
 bin="${ISOSCOPE_BIN:-target/debug/isoscope}"
 wait_s="${WAIT_SECONDS:-25}"
 display="${SCREENSHOT_DISPLAY:-:99}"
@@ -30,8 +32,16 @@ done
 export XDG_RUNTIME_DIR="$(mktemp -d)"
 export XDG_CONFIG_HOME="$(mktemp -d)"
 export XDG_DATA_HOME="$XDG_CONFIG_HOME"
+work="$(mktemp -d)"
 
 started_xvfb=""
+app=""
+cleanup() {
+    [[ -n "$app" ]] && kill "$app" 2>/dev/null || true
+    [[ -n "$started_xvfb" ]] && kill "$started_xvfb" 2>/dev/null || true
+    rm -rf "$work"
+}
+trap cleanup EXIT
 if ! DISPLAY="$display" xdotool getdisplaygeometry >/dev/null 2>&1; then
     setsid nohup Xvfb "$display" -screen 0 1280x800x24 >/dev/null 2>&1 &
     started_xvfb=$!
@@ -41,20 +51,51 @@ if ! DISPLAY="$display" xdotool getdisplaygeometry >/dev/null 2>&1; then
     done
 fi
 
-DISPLAY="$display" "$bin" "$@" >/tmp/isoscope-screenshot.log 2>&1 &
-app=$!
-cleanup() {
+# shot OUTPUT.png [ISOSCOPE ARGS...]: one run of the viewer, one picture of the screen.
+shot() {
+    local out="$1"
+    shift
+    DISPLAY="$display" "$bin" "$@" >"$work/app.log" 2>&1 &
+    app=$!
+    sleep "$wait_s"
+    if ! kill -0 "$app" 2>/dev/null; then
+        echo "the app exited early; its log:" >&2
+        cat "$work/app.log" >&2
+        exit 1
+    fi
+    mkdir -p "$(dirname "$out")"
+    DISPLAY="$display" import -window root "$out"
     kill "$app" 2>/dev/null || true
-    [[ -n "$started_xvfb" ]] && kill "$started_xvfb" 2>/dev/null || true
+    wait "$app" 2>/dev/null || true
+    app=""
+    echo "wrote $out"
 }
-trap cleanup EXIT
 
-sleep "$wait_s"
-if ! kill -0 "$app" 2>/dev/null; then
-    echo "the app exited early; its log:" >&2
-    cat /tmp/isoscope-screenshot.log >&2
-    exit 1
+if [[ $# -gt 0 ]]; then
+    out="$1"
+    shift
+    [[ "${1:-}" == "--" ]] && shift
+    shot "$out" "$@"
+    exit 0
 fi
-mkdir -p "$(dirname "$out")"
-DISPLAY="$display" import -window root "$out"
-echo "wrote $out"
+
+shot docs/images/viewer.png
+
+# A tet mesh with two isosurfaces of its "gaussians" array, the outer one transparent: the
+# session file (File → Save session… writes the same format) sets the array, surfaces and
+# camera; opening a session file restores it.
+"$bin" generate tet-ball --tets 300000 -o "$work/ball.vtu" >/dev/null
+cat >"$work/ball-session.json" <<JSON
+{
+  "version": 1,
+  "files": ["$work/ball.vtu"],
+  "field": "gaussians",
+  "camera": {"azimuth_deg": 60.0, "elevation_deg": 25.0, "zoom": 0.62},
+  "surfaces": [
+    {"isovalue": 0.7, "color": [0.90, 0.75, 0.55], "opacity": 1.0, "visible": true},
+    {"isovalue": 0.3, "color": [0.35, 0.60, 0.95], "opacity": 0.4, "visible": true}
+  ],
+  "render": {"max_layers": 8}
+}
+JSON
+shot docs/images/screenshot-tet.png "$work/ball-session.json"

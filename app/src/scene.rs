@@ -53,7 +53,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
-use formats::mesh::{LoadedMesh, MeshSeries};
+use formats::mesh::{LoadedMesh, MeshSeries, StepData};
 use volume_core::RectilinearVolume;
 use volume_core::grid_scene::{AnyGridScene, SceneVisitor};
 use volume_core::intersect::Intersector;
@@ -155,11 +155,68 @@ pub enum AnyScene {
 /// Opens `path` as whatever it is ([`detect_kind`]) and builds its acceleration structure.
 /// `.isot` files start their loader thread with the top treelet only.
 pub fn open_scene(path: &Path, options: &SceneOptions) -> anyhow::Result<AnyScene> {
-    match detect_kind(path) {
-        SceneKind::Grid => GridData::open(path, options).map(AnyScene::Grid),
-        SceneKind::Tet => TetData::open(path, options).map(AnyScene::Tet),
+    open_scene_with(path, options, &OpenControl::NONE)
+}
+
+/// [`open_scene`] with progress and a cooperative cancel (the viewer's load job). The flag is
+/// checked between the phases — read, value statistics, structure build — so a cancel takes
+/// effect when the running phase ends; the error is then [`Cancelled`].
+pub fn open_scene_with(
+    path: &Path,
+    options: &SceneOptions,
+    control: &OpenControl<'_>,
+) -> anyhow::Result<AnyScene> {
+    control.checkpoint(0.0)?;
+    let scene = match detect_kind(path) {
+        SceneKind::Grid => GridData::open(path, options, control).map(AnyScene::Grid),
+        SceneKind::Tet => TetData::open(path, options, control).map(AnyScene::Tet),
         SceneKind::Ooc => OocData::open(path, options).map(AnyScene::Ooc),
+    }?;
+    control.checkpoint(1.0)?;
+    Ok(scene)
+}
+
+/// An open stopped by [`OpenControl::cancel`]: not a failure, nothing to report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cancelled;
+
+impl std::fmt::Display for Cancelled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("cancelled")
     }
+}
+
+impl std::error::Error for Cancelled {}
+
+/// Progress (fraction of the phases done) and cancel for [`open_scene_with`].
+#[derive(Clone, Copy)]
+pub struct OpenControl<'a> {
+    pub cancel: &'a AtomicBool,
+    pub progress: &'a (dyn Fn(f32) + Sync),
+}
+
+static NEVER_CANCELLED: AtomicBool = AtomicBool::new(false);
+
+impl OpenControl<'_> {
+    /// No progress, never cancelled.
+    pub const NONE: OpenControl<'static> = OpenControl {
+        cancel: &NEVER_CANCELLED,
+        progress: &|_| {},
+    };
+
+    /// Reports `fraction` and returns [`Cancelled`] if the flag is raised.
+    pub fn checkpoint(&self, fraction: f32) -> anyhow::Result<()> {
+        if self.cancel.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(Cancelled.into());
+        }
+        (self.progress)(fraction);
+        Ok(())
+    }
+}
+
+/// True when `error` is an open stopped by its cancel flag.
+pub fn is_cancelled(error: &anyhow::Error) -> bool {
+    error.downcast_ref::<Cancelled>().is_some()
 }
 
 /// Renders a typed scene with [`volume_core::render::render`] (the one shading path).
@@ -453,7 +510,11 @@ impl std::fmt::Debug for GridData {
 }
 
 impl GridData {
-    fn open(path: &Path, options: &SceneOptions) -> anyhow::Result<Self> {
+    fn open(
+        path: &Path,
+        options: &SceneOptions,
+        control: &OpenControl<'_>,
+    ) -> anyhow::Result<Self> {
         let (volume, series) = match formats::open(path, &options.open)? {
             formats::Dataset::Volume(v) => {
                 check_step(options.step, 1, path)?;
@@ -467,8 +528,10 @@ impl GridData {
                 (v, Some(s))
             }
         };
-        let scene = AnyGridScene::new(&volume, options.intersector);
+        control.checkpoint(0.5)?;
         let value_range = volume.value_stats().finite_range;
+        control.checkpoint(0.6)?;
+        let scene = AnyGridScene::new(&volume, options.intersector);
         Ok(Self {
             path: path.to_path_buf(),
             volume,
@@ -549,7 +612,11 @@ pub struct TetData {
 }
 
 impl TetData {
-    fn open(path: &Path, options: &SceneOptions) -> anyhow::Result<Self> {
+    fn open(
+        path: &Path,
+        options: &SceneOptions,
+        control: &OpenControl<'_>,
+    ) -> anyhow::Result<Self> {
         let series =
             if formats::mesh::MeshFormat::from_path(path) == Some(formats::mesh::MeshFormat::Pvd) {
                 Some(formats::mesh::read_pvd(path)?)
@@ -570,6 +637,7 @@ impl TetData {
             None => (formats::mesh::read_mesh(path)?, 1),
         };
         check_step(options.step, count, path)?;
+        control.checkpoint(0.5)?;
         let mesh = &loaded.mesh;
         let field = if let Some(f) = &options.field {
             f.clone()
@@ -602,6 +670,7 @@ impl TetData {
         };
         let values = step_field(&step_fields, &field, options.step, path)?;
         let moved = positions.is_some();
+        control.checkpoint(0.6)?;
         let points = positions.as_deref().unwrap_or(&mesh.points);
         let t0 = Instant::now();
         let mut scene = TetScene::from_parts(points, mesh.tets.clone(), values, options.bvh)
@@ -687,26 +756,50 @@ impl TetData {
         t0.elapsed()
     }
 
-    fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
-        let Some(series) = &self.series else {
-            return check_step(step, 1, &self.path);
-        };
-        check_step(step, series.len(), &self.path)?;
-        if step == self.step {
-            return Ok(());
+    /// The time step shown.
+    pub fn step(&self) -> usize {
+        self.step
+    }
+
+    /// The drawn array's values at the current step (one per point).
+    pub fn field_values(&self) -> Option<&[f32]> {
+        self.step_fields
+            .iter()
+            .find(|f| f.name == self.field)
+            .map(|f| f.values.as_slice())
+    }
+
+    /// Reads `step`'s arrays and positions (step 0: the arrays as read at open). Touches no
+    /// state, so it can run ahead of time (prefetching) while the scene renders.
+    pub fn load_step_data(&self, step: usize) -> anyhow::Result<StepData> {
+        let count = self.series.as_ref().map_or(1, MeshSeries::len);
+        check_step(step, count, &self.path)?;
+        match &self.series {
+            Some(series) if step > 0 => Ok(series.load_step_data(step, &self.loaded.mesh)?),
+            _ => Ok(StepData {
+                time: self
+                    .series
+                    .as_ref()
+                    .and_then(|s| s.steps.first())
+                    .map_or(0.0, |s| s.time),
+                positions: None,
+                fields: self.loaded.mesh.fields.clone(),
+            }),
         }
-        let (positions, fields) = if step == 0 {
-            (None, self.loaded.mesh.fields.clone())
-        } else {
-            let d = series.load_step_data(step, &self.loaded.mesh)?;
-            (d.positions, d.fields)
-        };
-        let values = step_field(&fields, &self.field, step, &self.path)?;
+    }
+
+    /// Makes `step` current from its already loaded `data` (see [`Self::load_step_data`]):
+    /// refits the BVH (values, then positions when they moved) and updates the step, the
+    /// drawn array's values and so [`Self::value_range`] and [`Self::field_values`].
+    pub fn set_step_from(&mut self, step: usize, data: &StepData) -> anyhow::Result<()> {
+        let count = self.series.as_ref().map_or(1, MeshSeries::len);
+        check_step(step, count, &self.path)?;
+        let values = step_field(&data.fields, &self.field, step, &self.path)?;
         // Values first (cheap refit of the ranges), then positions if they changed.
         self.scene.refit_scalars(values)?;
-        match positions {
+        match &data.positions {
             Some(p) => {
-                self.scene.refit_positions(&p)?;
+                self.scene.refit_positions(p)?;
                 self.moved = true;
             }
             None if self.moved => {
@@ -715,9 +808,18 @@ impl TetData {
             }
             None => {}
         }
-        self.step_fields = fields;
+        self.step_fields.clone_from(&data.fields);
         self.step = step;
         Ok(())
+    }
+
+    fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
+        if step == self.step {
+            let count = self.series.as_ref().map_or(1, MeshSeries::len);
+            return check_step(step, count, &self.path);
+        }
+        let data = self.load_step_data(step)?;
+        self.set_step_from(step, &data)
     }
 }
 
@@ -906,6 +1008,95 @@ mod tests {
         );
         t.scene().validate().unwrap();
         assert!(scene.set_step(1).is_err());
+    }
+
+    /// Two numbered files of a ball whose `distance` array is scaled per step (step 1 also
+    /// moves the points): `set_step_from` leaves the step, the drawn values, the value range
+    /// and the picture exactly as a fresh open at that step has them.
+    #[test]
+    fn set_step_from_updates_step_values_and_range() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, 6).unwrap();
+        for s in 0..2 {
+            let mut mesh = base.clone();
+            for f in &mut mesh.fields {
+                f.values.iter_mut().for_each(|v| *v *= 1.0 + 2.0 * s as f32);
+            }
+            if s == 1 {
+                mesh.points
+                    .iter_mut()
+                    .for_each(|p| *p = p.map(|c| c * 1.25));
+            }
+            formats::mesh::write_vtu(&dir.path().join(format!("b_{s:03}.vtu")), &mesh).unwrap();
+        }
+        let pattern = dir.path().join("b_*.vtu");
+        let mut scene = open_scene(&pattern, &SceneOptions::default()).unwrap();
+        let t = scene.as_tet_mut().unwrap();
+        let (lo0, hi0) = t.value_range().unwrap();
+        let data = t.load_step_data(1).unwrap();
+        t.set_step_from(1, &data).unwrap();
+        assert_eq!(t.step(), 1);
+        // Truth computed from the written values, independently of the scene.
+        let want: Vec<f32> = base.fields[0].values.iter().map(|v| v * 3.0).collect();
+        assert_eq!(t.field_values().unwrap(), want.as_slice());
+        let lo = want.iter().copied().fold(f32::INFINITY, f32::min);
+        let hi = want.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        assert_eq!(t.value_range(), Some((f64::from(lo), f64::from(hi))));
+        assert!(hi0 < f64::from(hi), "the step-1 values are larger");
+        t.scene().validate().unwrap();
+        assert!(
+            t.set_step_from(5, &data).is_err(),
+            "out-of-range steps are refused"
+        );
+        let fresh = open_scene(
+            &pattern,
+            &SceneOptions {
+                step: 1,
+                ..SceneOptions::default()
+            },
+        )
+        .unwrap();
+        let camera = Camera::orbit(&fresh.world_bounds(), 30.0, 20.0, 40.0);
+        let settings = RenderSettings {
+            width: 40,
+            height: 30,
+            surfaces: vec![Surface::new(0.5 * (lo + hi), [1.0; 3])],
+            ..RenderSettings::default()
+        };
+        let never = AtomicBool::new(false);
+        let a = scene.render(&camera, &settings, &never).unwrap();
+        let b = fresh.render(&camera, &settings, &never).unwrap();
+        assert!(a.depth.iter().any(|d| d.is_finite()));
+        assert_eq!(a.rgba8, b.rgba8);
+        // Back to step 0: the reference positions and values again.
+        let t = scene.as_tet_mut().unwrap();
+        let d0 = t.load_step_data(0).unwrap();
+        t.set_step_from(0, &d0).unwrap();
+        assert_eq!(t.value_range(), Some((lo0, hi0)));
+    }
+
+    #[test]
+    fn a_raised_cancel_flag_stops_an_open() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write_ball(dir.path(), 4);
+        let cancel = AtomicBool::new(true);
+        let control = OpenControl {
+            cancel: &cancel,
+            progress: &|_| {},
+        };
+        let e = open_scene_with(&p, &SceneOptions::default(), &control).unwrap_err();
+        assert!(is_cancelled(&e), "{e:#}");
+        cancel.store(false, std::sync::atomic::Ordering::Relaxed);
+        let seen = std::sync::Mutex::new(Vec::new());
+        let record = |f: f32| seen.lock().unwrap().push(f);
+        let control = OpenControl {
+            cancel: &cancel,
+            progress: &record,
+        };
+        open_scene_with(&p, &SceneOptions::default(), &control).unwrap();
+        let seen = seen.into_inner().unwrap();
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+        assert_eq!(seen.last(), Some(&1.0));
     }
 
     #[test]

@@ -25,7 +25,7 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, TextureHandle, TextureOptions, Ve
 
 use crate::ui::backend::{
     Backend, CoreBackend, LoadedData, LodStatus, OpenChoices, RenderRequest, RenderedImage,
-    StepSwitch,
+    StepSwitch, ValueInfo,
 };
 use crate::ui::camera::{CameraPose, box_edges, clip_box_world};
 use crate::ui::files::{FileGroup, group_files};
@@ -45,6 +45,9 @@ const MAX_RENDER_SIDE: u32 = 4096;
 const LOD_POLL: Duration = Duration::from_millis(40);
 
 const PREFS_KEY: &str = "isoscope.prefs";
+
+/// A step switch: the refit, then the new step's value range and histogram.
+type StepJob = Job<Result<(StepSwitch, Option<ValueInfo>), String>>;
 
 struct RenderJob {
     generation: u64,
@@ -111,10 +114,15 @@ pub struct ViewerApp {
     load_job: Option<Job<Result<LoadedData, String>>>,
     /// The time step the scene holds (a step switch is a refit job).
     scene_step: usize,
-    step_job: Option<(usize, Job<Result<StepSwitch, String>>)>,
+    step_job: Option<(usize, StepJob)>,
     prefetch_job: Option<(usize, Job<Result<(), String>>)>,
     /// Steps of this epoch whose data is loaded ahead.
     prefetched: Vec<usize>,
+    /// A point-array switch of a mesh (a value refit holding the scene's write lock).
+    field_job: Option<(String, Job<Result<ValueInfo, String>>)>,
+    /// The files the running load will show; they replace `state.files` only when it
+    /// succeeds, so a cancelled or failed open leaves the session as it was.
+    loading_files: Option<Vec<PathBuf>>,
     lod: Option<LodStatus>,
     render_job: Option<RenderJob>,
     pending_render: Option<RenderRequest>,
@@ -165,6 +173,8 @@ impl ViewerApp {
             step_job: None,
             prefetch_job: None,
             prefetched: Vec::new(),
+            field_job: None,
+            loading_files: None,
             lod: None,
             render_job: None,
             pending_render: None,
@@ -225,6 +235,7 @@ impl ViewerApp {
     pub fn is_busy(&self) -> bool {
         self.load_job.is_some()
             || self.step_job.is_some()
+            || self.field_job.is_some()
             || self.render_job.is_some()
             || self.screenshot_job.is_some()
     }
@@ -255,7 +266,13 @@ impl ViewerApp {
         OpenChoices {
             intersector: self.state.render.intersector,
             smooth_normals: self.state.render.smooth_normals,
+            field: self.state.field.clone(),
         }
+    }
+
+    /// Progress of the running open (0..1), if any.
+    pub fn load_progress(&self) -> Option<f32> {
+        self.load_job.as_ref().map(Job::progress)
     }
 
     // ---- jobs -------------------------------------------------------------------------
@@ -279,9 +296,26 @@ impl ViewerApp {
 
     fn poll_jobs(&mut self, ctx: &egui::Context) {
         if let Some(result) = take_finished(&mut self.load_job) {
+            let files = self.loading_files.take();
             match result.and_then(|r| r) {
-                Ok(data) => self.install_data(data),
+                Ok(data) => {
+                    if let Some(files) = files {
+                        self.state.files = files;
+                    }
+                    self.install_data(data);
+                }
                 Err(e) => self.notify(e, true),
+            }
+        }
+        if let Some((name, _)) = &self.field_job {
+            let name = name.clone();
+            let mut slot = self.field_job.take().map(|(_, j)| j);
+            match take_finished(&mut slot) {
+                None => self.field_job = slot.map(|j| (name, j)),
+                Some(Ok(Ok(info))) => self.field_switched(name, info),
+                Some(Ok(Err(e)) | Err(e)) => {
+                    self.notify(format!("{}: {e}", self.data_name()), true);
+                }
             }
         }
         if let Some((step, _)) = &self.step_job {
@@ -289,8 +323,11 @@ impl ViewerApp {
             let mut slot = self.step_job.take().map(|(_, j)| j);
             match take_finished(&mut slot) {
                 None => self.step_job = slot.map(|j| (step, j)),
-                Some(Ok(Ok(switch))) => {
+                Some(Ok(Ok((switch, info)))) => {
                     self.scene_step = step;
+                    if let (Some(info), Some(d)) = (info, self.data.as_mut()) {
+                        d.set_values(info);
+                    }
                     match switch {
                         StepSwitch::Refit => self.stats.steps_refit += 1,
                         StepSwitch::Rebuilt => self.stats.steps_rebuilt += 1,
@@ -355,9 +392,29 @@ impl ViewerApp {
             .map_or_else(String::new, |d| d.name.clone())
     }
 
+    /// The scene draws point array `name` now: the sliders take its range and histogram,
+    /// and every isovalue keeps its relative position in the range.
+    fn field_switched(&mut self, name: String, info: ValueInfo) {
+        let Some(d) = self.data.as_mut() else { return };
+        let (lo0, hi0) = d.value_range;
+        let (lo, hi) = info.value_range;
+        for s in &mut self.state.surfaces {
+            let frac = if hi0 > lo0 {
+                ((s.isovalue - lo0) / (hi0 - lo0)).clamp(0.0, 1.0)
+            } else {
+                0.5
+            };
+            s.isovalue = lo + frac * (hi - lo);
+        }
+        d.set_values(info);
+        d.field = Some(name.clone());
+        self.state.field = Some(name);
+    }
+
     fn install_data(&mut self, data: LoadedData) {
         self.epoch += 1;
         self.step_job = None;
+        self.field_job = None;
         self.prefetch_job = None;
         self.prefetched.clear();
         if let Some(rj) = self.render_job.take() {
@@ -384,6 +441,7 @@ impl ViewerApp {
                 .surfaces
                 .push(panels::new_surface(&self.state, &data));
         }
+        self.state.field.clone_from(&data.field);
         self.lod = data.scene.lod_status();
         self.data = Some(data);
         self.stats.datasets_loaded += 1;
@@ -446,7 +504,10 @@ impl ViewerApp {
 
     /// True when the scene holds the step the state asks for.
     fn scene_ready(&self) -> bool {
-        self.data.is_some() && self.step_job.is_none() && self.scene_step == self.state.time.step
+        self.data.is_some()
+            && self.step_job.is_none()
+            && self.field_job.is_none()
+            && self.scene_step == self.state.time.step
     }
 
     fn start_render(&mut self, request: RenderRequest) {
@@ -488,6 +549,7 @@ impl ViewerApp {
             clip_planes: self.state.clip_planes.clone(),
             options: self.state.render,
             step: self.state.time.step,
+            field: data.field.clone(),
             lod_levels: self.lod.as_ref().map_or(0, |l| l.loaded_levels),
         })
     }
@@ -557,7 +619,7 @@ impl ViewerApp {
         let scene = Arc::clone(&data.scene);
         let count = data.step_count();
         let wanted = self.state.time.step;
-        if wanted != self.scene_step && self.step_job.is_none() {
+        if wanted != self.scene_step && self.step_job.is_none() && self.field_job.is_none() {
             // The refit takes the scene's write lock: stop the running frame first.
             if let Some(r) = self.render_job.take() {
                 r.job.cancel();
@@ -567,7 +629,15 @@ impl ViewerApp {
             let job = Job::spawn(
                 format!("switching to step {wanted}"),
                 self.repaint_fn(),
-                move |control| scene.set_step(wanted, control),
+                move |control| {
+                    let switch = scene.set_step(wanted, control)?;
+                    // The new step's range and histogram (unchanged: nothing to scan).
+                    let info = match switch {
+                        StepSwitch::Unchanged => None,
+                        _ => scene.value_info(),
+                    };
+                    Ok((switch, info))
+                },
             );
             self.step_job = Some((wanted, job));
             return;
@@ -635,14 +705,15 @@ impl ViewerApp {
     fn apply(&mut self, cmd: Command) {
         match cmd {
             Command::OpenDefault => {
-                self.state.files.clear();
+                self.loading_files = Some(Vec::new());
                 self.start_load(None, None);
             }
+            Command::SetField(name) => self.start_field_switch(name),
             Command::OpenFiles(files) => self.open_files(&files),
             Command::OpenRaw(path, layout) => {
                 self.state.raw_layout = Some(layout.clone());
                 if !self.state.files.contains(&path) {
-                    self.state.files = vec![path.clone()];
+                    self.loading_files = Some(vec![path.clone()]);
                 }
                 self.start_load(Some(path), Some(layout));
             }
@@ -725,9 +796,13 @@ impl ViewerApp {
                 height,
             } => self.start_screenshot(path, width, height),
             Command::CancelJobs => {
-                // Dropping a job raises its cancel flag. A running step switch is left to
-                // finish (a refit is short and holds the scene's lock).
-                self.load_job = None;
+                // Dropping a job raises its cancel flag (the open stops at its next
+                // checkpoint); the data on screen stays. A running step or field switch is
+                // left to finish (a refit is short and holds the scene's lock).
+                if let Some(j) = self.load_job.take() {
+                    self.notify(format!("cancelled: {}", j.label), false);
+                }
+                self.loading_files = None;
                 self.prefetch_job = None;
                 if let Some(r) = self.render_job.take() {
                     r.job.cancel();
@@ -743,9 +818,17 @@ impl ViewerApp {
 
     /// Several files of one kind and shape open as a time series (see [`group_files`]).
     fn open_files(&mut self, files: &[PathBuf]) {
+        // A session file (from the command line, drag and drop or the file dialog) restores
+        // the session instead.
+        if let [one] = files
+            && is_session_file(one)
+        {
+            self.apply(Command::LoadSession(one.clone()));
+            return;
+        }
         match group_files(files) {
             FileGroup::Single(p) => {
-                self.state.files = vec![p.clone()];
+                self.loading_files = Some(vec![p.clone()]);
                 self.active_file = 0;
                 self.open_path(p);
             }
@@ -757,7 +840,7 @@ impl ViewerApp {
                     ),
                     false,
                 );
-                self.state.files = vec![pattern.clone()];
+                self.loading_files = Some(vec![pattern.clone()]);
                 self.active_file = 0;
                 self.open_path(pattern);
             }
@@ -771,7 +854,7 @@ impl ViewerApp {
                         false,
                     );
                 }
-                self.state.files = files;
+                self.loading_files = Some(files);
                 self.active_file = 0;
                 self.open_path(first);
             }
@@ -786,6 +869,32 @@ impl ViewerApp {
         } else {
             self.start_load(Some(path), None);
         }
+    }
+
+    /// Draws another point array of a mesh (a value refit in a job; renders wait for it).
+    fn start_field_switch(&mut self, name: String) {
+        let Some(d) = &self.data else { return };
+        if d.field.as_deref() == Some(name.as_str()) || self.field_job.is_some() {
+            return;
+        }
+        if !d.fields.contains(&name) {
+            self.notify(format!("{}: no point array \"{name}\"", d.name), true);
+            return;
+        }
+        let scene = Arc::clone(&d.scene);
+        // The refit takes the scene's write lock: stop the running frame first.
+        if let Some(r) = self.render_job.take() {
+            r.job.cancel();
+            self.stats.renders_discarded += 1;
+        }
+        self.pending_render = None;
+        let n = name.clone();
+        let job = Job::spawn(
+            format!("switching to point array {name}"),
+            self.repaint_fn(),
+            move |control| scene.set_field(&n, control),
+        );
+        self.field_job = Some((name, job));
     }
 
     fn start_screenshot(&mut self, path: PathBuf, width: u32, height: u32) {
@@ -940,8 +1049,12 @@ impl ViewerApp {
             let job_row = |ui: &mut egui::Ui, label: &str, progress: f32, started: Instant| {
                 ui.add(
                     egui::ProgressBar::new(progress)
-                        .desired_width(120.0)
-                        .text(format!("{label} {:.1}s", started.elapsed().as_secs_f32())),
+                        .desired_width(220.0)
+                        .text(format!(
+                            "{label} {:.0}% {:.1}s",
+                            progress * 100.0,
+                            started.elapsed().as_secs_f32()
+                        )),
                 );
             };
             if let Some(j) = &self.load_job {
@@ -951,6 +1064,9 @@ impl ViewerApp {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
             if let Some((_, j)) = &self.prefetch_job {
+                job_row(ui, &j.label, j.progress(), j.started);
+            }
+            if let Some((_, j)) = &self.field_job {
                 job_row(ui, &j.label, j.progress(), j.started);
             }
             if let Some(j) = &self.screenshot_job {
@@ -1208,6 +1324,27 @@ fn lod_ui(ui: &mut egui::Ui, l: &LodStatus, drawn_level: Option<usize>) {
         l.loaded_levels,
         l.resident_bytes as f64 / f64::from(1u32 << 20)
     ));
+}
+
+/// A `.json` file holding a viewer session (a `version` and at least one of the session's
+/// sections), not a raw file's layout sidecar.
+pub fn is_session_file(path: &Path) -> bool {
+    let is_json = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if !is_json {
+        return false;
+    }
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return false;
+    };
+    serde_json::from_str::<serde_json::Value>(&text).is_ok_and(|v| {
+        v.get("version").is_some()
+            && ["files", "surfaces", "camera"]
+                .iter()
+                .any(|k| v.get(k).is_some())
+    })
 }
 
 /// A raw file needs its layout from the user unless a `NAME.json` sidecar gives it.

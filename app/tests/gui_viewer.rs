@@ -38,6 +38,8 @@ struct Log {
     /// Every `set_step` call, in order.
     steps: Vec<usize>,
     prefetches: Vec<usize>,
+    /// Slow opens that saw their cancel flag and stopped.
+    cancelled_opens: usize,
 }
 
 /// Blocks scene builds while closed (to check that the UI keeps running).
@@ -149,14 +151,25 @@ impl TestBackend {
 }
 
 impl Backend for TestBackend {
-    /// `series.test`: four steps of a 6×5×4 grid, times 0, 0.5, 1, 1.5.
+    /// `series.test`: four steps of a 6×5×4 grid, times 0, 0.5, 1, 1.5. `slow.test`: an
+    /// open that reports 30% and then runs until it is cancelled (at most 30 s).
     fn open(
         &self,
         path: &std::path::Path,
         _raw: Option<&RawLayoutState>,
         _choices: OpenChoices,
-        _control: &JobControl,
+        control: &JobControl,
     ) -> Result<LoadedData, String> {
+        if path.ends_with("slow.test") {
+            control.set_progress(0.3);
+            let start = Instant::now();
+            while !control.is_cancelled() {
+                assert!(start.elapsed() < Duration::from_secs(30), "never cancelled");
+                std::thread::sleep(Duration::from_millis(2));
+            }
+            self.recorder.log.lock().unwrap().cancelled_opens += 1;
+            return Err(format!("{}: cancelled", path.display()));
+        }
         if !path.ends_with("series.test") {
             return Err(format!("{}: no such test file", path.display()));
         }
@@ -169,6 +182,9 @@ impl Backend for TestBackend {
             bounds: Aabb::new(Vec3::ZERO, Vec3::new(5.0, 4.0, 6.0)),
             value_range: (0.0, 8.0),
             histogram: None,
+            histogram_note: String::new(),
+            fields: Vec::new(),
+            field: None,
             times: vec![0.0, 0.5, 1.0, 1.5],
             scene: self.scene("series.test"),
         })
@@ -411,6 +427,52 @@ fn the_ui_keeps_running_while_a_scene_builds() {
 }
 
 #[test]
+fn cancel_stops_a_slow_open_and_keeps_the_data_shown() {
+    let (mut h, rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    let files_before = h.state().state.files.clone();
+    h.state_mut().push(Command::OpenFiles(vec![PathBuf::from(
+        "/virtual/slow.test",
+    )]));
+    step_until(&mut h, "the open's progress", |a| {
+        a.load_progress() == Some(0.3)
+    });
+    // The bar shows the fraction, next to its Cancel button.
+    h.run_steps(1);
+    h.get_by_label_contains("loading /virtual/slow.test 30%");
+    h.get_by_label("Cancel").click();
+    h.run_steps(2);
+    assert!(h.state().load_progress().is_none(), "the job is gone");
+    // The worker saw the flag and stopped (it would run 30 s otherwise).
+    let start = Instant::now();
+    while rec.log.lock().unwrap().cancelled_opens == 0 {
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "the open did not stop"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    h.run_steps(2);
+    let app = h.state();
+    assert_eq!(
+        app.data().unwrap().dims,
+        [64, 64, 64],
+        "the previous data stays"
+    );
+    assert_eq!(app.state.files, files_before, "the session still names it");
+    assert!(
+        app.notifications().iter().all(|n| !n.is_error),
+        "a cancel is not an error"
+    );
+    h.get_by_label("Add isosurface").click();
+    h.run_steps(2);
+    settle(&mut h);
+    assert_eq!(h.state().shown_frame().unwrap().request.surfaces.len(), 2);
+    assert_eq!(rec.log.lock().unwrap().prepares.len(), 1);
+}
+
+#[test]
 fn a_bad_file_gives_a_notification_and_the_app_keeps_running() {
     let (mut h, _rec) = harness(vec![]);
     step_until(&mut h, "the default sample", |a| a.data().is_some());
@@ -506,12 +568,18 @@ fn small_request(app: &ViewerApp) -> RenderRequest {
 }
 
 /// Four numbered `.vtu` files of a tet ball: one field, `moving_gaussian`, whose centre moves
-/// per step; step 2 also moves the points (scaled by 1.1), step 3 is back in place.
-fn write_tet_series(dir: &std::path::Path) -> Vec<PathBuf> {
+/// per step (scaled by 1 + step/2, so each step has its own range); step 2 also moves the
+/// points (scaled by 1.1), step 3 is back in place. Returns the files and each step's values.
+fn write_tet_series(dir: &std::path::Path) -> (Vec<PathBuf>, Vec<Vec<f32>>) {
     use data_samples::tets::{TetShape, moving_gaussian_steps, tet_mesh};
     let base = tet_mesh(TetShape::Ball, 7).unwrap();
-    let values = moving_gaussian_steps(&base, 4);
-    values
+    let values: Vec<Vec<f32>> = moving_gaussian_steps(&base, 4)
+        .into_iter()
+        .enumerate()
+        .map(|(s, v)| v.into_iter().map(|x| x * (1.0 + 0.5 * s as f32)).collect())
+        .collect();
+    let files = values
+        .clone()
         .into_iter()
         .enumerate()
         .map(|(s, v)| {
@@ -526,7 +594,15 @@ fn write_tet_series(dir: &std::path::Path) -> Vec<PathBuf> {
             formats::mesh::write_vtu(&path, &mesh).unwrap();
             path
         })
-        .collect()
+        .collect();
+    (files, values)
+}
+
+/// Smallest and largest value, as f64 (the viewer's slider range).
+fn min_max(values: &[f32]) -> (f64, f64) {
+    let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = values.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    (f64::from(lo), f64::from(hi))
 }
 
 #[test]
@@ -535,7 +611,7 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
     use volume_core::tet::TetNormals;
 
     let dir = tempfile::tempdir().unwrap();
-    let files = write_tet_series(dir.path());
+    let (files, step_values) = write_tet_series(dir.path());
     // Four numbered files given together open as one time series.
     let mut h = real_harness(files);
     step_until(&mut h, "the mesh series", |a| a.data().is_some());
@@ -576,6 +652,15 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
         settle(&mut h);
         let app = h.state();
         assert_eq!(app.scene_step(), step);
+        // The sliders' range and histogram follow the step (truth: the written values).
+        let data = app.data().unwrap();
+        assert_eq!(data.value_range, min_max(&step_values[step]), "step {step}");
+        let counts = &data.histogram.as_ref().unwrap().counts;
+        assert_eq!(
+            counts.iter().sum::<u64>(),
+            step_values[step].len() as u64,
+            "every point value of step {step} is counted"
+        );
         let shown = &app.shown_frame().unwrap().request;
         assert_eq!(shown.step, step, "a frame of the new step arrived");
         assert!(shown.options.smooth_normals);
@@ -676,4 +761,103 @@ fn an_isot_file_refines_to_the_finest_level_with_a_visible_indicator() {
     let bg = ours.chunks(4).filter(|p| p[..3] == ours[..3]).count();
     assert!(bg < ours.len() / 4, "the surface is in view");
     assert_eq!(ours, theirs);
+}
+
+/// The point-array picker: choosing another array re-renders with it (the same picture as a
+/// scene opened directly with that array), the sliders take its range and histogram, and the
+/// choice is saved in the session.
+#[test]
+fn the_point_array_picker_redraws_with_the_chosen_array() {
+    use isoscope::scene::{SceneOptions, open_scene};
+
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, 8).unwrap();
+    let path = dir.path().join("ball.vtu");
+    formats::mesh::write_vtu(&path, &mesh).unwrap();
+    let values_of = |name: &str| {
+        mesh.fields
+            .iter()
+            .find(|f| f.name == name)
+            .unwrap()
+            .values
+            .clone()
+    };
+
+    let mut h = real_harness(vec![path.clone()]);
+    step_until(&mut h, "the mesh", |a| a.data().is_some());
+    settle(&mut h);
+    let data = h.state().data().unwrap();
+    assert_eq!(data.field.as_deref(), Some("distance"));
+    assert!(
+        data.fields.iter().any(|f| f == "gaussians"),
+        "{:?}",
+        data.fields
+    );
+    assert_eq!(data.value_range, min_max(&values_of("distance")));
+    let before = h.state().shown_frame().unwrap().request.clone();
+    assert_eq!(before.field.as_deref(), Some("distance"));
+
+    // Through the combo box, as a user picks it.
+    h.get_by_role_and_label(Role::ComboBox, "Point array")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("gaussians").click();
+    h.run_steps(2);
+    step_until(&mut h, "the switch to gaussians", |a| {
+        a.data().unwrap().field.as_deref() == Some("gaussians")
+    });
+    settle(&mut h);
+    let app = h.state();
+    assert_eq!(app.state.field.as_deref(), Some("gaussians"));
+    let data = app.data().unwrap();
+    let (lo, hi) = min_max(&values_of("gaussians"));
+    assert_eq!(data.value_range, (lo, hi));
+    assert_eq!(
+        data.histogram.as_ref().unwrap().counts.iter().sum::<u64>(),
+        mesh.points.len() as u64
+    );
+    assert!(
+        data.histogram_note.contains("gaussians"),
+        "{}",
+        data.histogram_note
+    );
+    let iso = app.state.surfaces[0].isovalue;
+    assert!(
+        iso >= lo && iso <= hi,
+        "the isovalue moved into the new range: {iso}"
+    );
+    let shown = &app.shown_frame().unwrap().request;
+    assert_eq!(shown.field.as_deref(), Some("gaussians"));
+    assert_eq!(
+        app.stats.scenes_built, 1,
+        "a field switch is a refit, not a rebuild"
+    );
+
+    // Independent truth: the mesh opened with that array from the start.
+    let open_with = |field: &str| {
+        open_scene(
+            &path,
+            &SceneOptions {
+                field: Some(field.into()),
+                ..SceneOptions::default()
+            },
+        )
+        .unwrap()
+    };
+    let request = small_request(app);
+    let (ours, theirs) = render_both(app, &open_with("gaussians"), &request);
+    let bg = ours.chunks(4).filter(|p| p[..3] == ours[..3]).count();
+    assert!(bg < ours.len() / 4, "the surface is in view");
+    assert_eq!(ours, theirs, "the viewer draws the chosen array");
+    let (_, other) = render_both(app, &open_with("distance"), &request);
+    assert_ne!(ours, other, "the other array draws another picture");
+
+    // The session records the choice.
+    let session = dir.path().join("session.json");
+    h.state_mut().push(Command::SaveSession(session.clone()));
+    h.run_steps(1);
+    assert_eq!(
+        ViewerState::load(&session).unwrap().field.as_deref(),
+        Some("gaussians")
+    );
 }

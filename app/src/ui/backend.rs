@@ -41,6 +41,8 @@ pub struct RenderRequest {
     pub options: RenderOptions,
     /// Time step the scene holds.
     pub step: usize,
+    /// Tet meshes: the point array the scene draws (`None` for other kinds).
+    pub field: Option<String>,
     /// Out-of-core levels loaded when the request was made (0 for in-core data): a newly
     /// published level changes the request, so the view re-renders as the data refines.
     pub lod_levels: usize,
@@ -100,6 +102,21 @@ pub trait PreparedScene: Send + Sync {
     /// Call from a job.
     fn prefetch(&self, step: usize, control: &JobControl) -> Result<(), String>;
 
+    /// Tet meshes: draws point array `name` (a value refit, no rebuild) and returns the new
+    /// value range and histogram. Call from a job.
+    fn set_field(&self, name: &str, _control: &JobControl) -> Result<ValueInfo, String> {
+        Err(format!(
+            "point array \"{name}\": this data has no point arrays to choose from"
+        ))
+    }
+
+    /// The value range and histogram of what the scene draws now (after a step or field
+    /// switch); `None` when they do not change (the default). Call from a job: it may scan
+    /// every value.
+    fn value_info(&self) -> Option<ValueInfo> {
+        None
+    }
+
     /// Out-of-core loading progress; `None` for in-core data. Never blocks.
     fn lod_status(&self) -> Option<LodStatus> {
         None
@@ -117,6 +134,15 @@ pub enum DataKindLabel {
 /// Number of histogram bins under the isovalue sliders.
 pub const HISTOGRAM_BINS: usize = 128;
 
+/// What the isovalue sliders range over: the drawn values' range and histogram.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValueInfo {
+    pub value_range: (f64, f64),
+    pub histogram: Option<Histogram>,
+    /// What the histogram counts (shown under it), e.g. "262144 voxels".
+    pub histogram_note: String,
+}
+
 /// A loaded dataset: its scene and what the panels show about it.
 #[derive(Clone)]
 pub struct LoadedData {
@@ -129,16 +155,28 @@ pub struct LoadedData {
     /// Grid dims (`[0; 3]` for meshes).
     pub dims: [usize; 3],
     pub bounds: Aabb,
-    /// Finite value range of the first step (the slider range).
+    /// Finite value range of the current step and field (the slider range).
     pub value_range: (f64, f64),
-    /// `None` when the data is not resident (out-of-core).
+    /// Histogram of the current step and field (`.isot`: of the coarsest level).
     pub histogram: Option<Histogram>,
+    /// What the histogram counts, shown under it.
+    pub histogram_note: String,
+    /// Tet meshes: the point arrays that can be drawn, and the drawn one.
+    pub fields: Vec<String>,
+    pub field: Option<String>,
     /// Time value of every step (one entry for a single data set).
     pub times: Vec<f64>,
     pub scene: Arc<dyn PreparedScene>,
 }
 
 impl LoadedData {
+    /// Takes the range and histogram of a new step or field.
+    pub fn set_values(&mut self, info: ValueInfo) {
+        self.value_range = info.value_range;
+        self.histogram = info.histogram;
+        self.histogram_note = info.histogram_note;
+    }
+
     pub fn step_count(&self) -> usize {
         self.times.len().max(1)
     }
@@ -167,10 +205,12 @@ pub fn grid_world_bounds(grid: &Grid) -> Aabb {
 
 /// How to build a scene (the render options that are fixed at build time are only initial
 /// values: the intersector and tet normals are switched in place later).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct OpenChoices {
     pub intersector: IntersectorChoice,
     pub smooth_normals: bool,
+    /// Tet meshes: the point array to draw if the mesh has it (a restored session's).
+    pub field: Option<String>,
 }
 
 /// Opening data and building scenes; implemented by [`CoreBackend`] and by test doubles.

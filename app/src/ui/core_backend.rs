@@ -25,12 +25,12 @@ use volume_core::{RectilinearVolume, VoxelType};
 
 use super::backend::{
     Backend, DataKindLabel, HISTOGRAM_BINS, LoadedData, LodStatus, OpenChoices, PreparedScene,
-    RenderRequest, RenderedImage, StepSwitch,
+    RenderRequest, RenderedImage, StepSwitch, ValueInfo,
 };
 use super::camera::{bounding_radius, clip_box_world};
 use super::jobs::JobControl;
 use super::state::{IntersectorChoice, KeepSide, RawLayoutState};
-use crate::scene::{AnyScene, GridData, SceneOptions, open_scene};
+use crate::scene::{AnyScene, GridData, OpenControl, SceneOptions, is_cancelled, open_scene_with};
 
 /// Edge length of the embedded default dataset.
 pub const DEFAULT_SAMPLE_SIZE: usize = 64;
@@ -142,13 +142,9 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
     }
 }
 
-/// Where a mesh scene stands. The viewer refits meshes itself (through
-/// `TetData::scene_mut`) so that step data prefetched in the background is used; the
-/// `TetData`'s own step counter is not advanced.
+/// Mesh steps loaded ahead (prefetched); a step switch hands the step's data to
+/// `TetData::set_step_from`, which refits and updates the step, values and value range.
 struct MeshTrack {
-    step: usize,
-    /// The scene holds positions other than the reference (step 0) ones.
-    moved: bool,
     /// Prefetched steps: `(step, data)`.
     cache: VecDeque<(usize, Arc<StepData>)>,
 }
@@ -157,8 +153,6 @@ struct MeshTrack {
 /// and intersector or normal changes the write lock (from jobs, never the UI thread).
 pub struct CorePrepared {
     scene: RwLock<AnyScene>,
-    /// Reference point positions of a mesh (step 0).
-    reference_points: Vec<[f32; 3]>,
     mesh: Mutex<MeshTrack>,
     /// Last out-of-core status, returned while the scene is locked for writing.
     lod: Mutex<Option<LodStatus>>,
@@ -171,17 +165,9 @@ fn poisoned<T>(_: T) -> String {
 
 impl CorePrepared {
     pub fn new(scene: AnyScene) -> Self {
-        let reference_points = scene
-            .as_tet()
-            .map(|t| t.loaded().mesh.points.clone())
-            .unwrap_or_default();
-        let step = scene.step();
         Self {
             scene: RwLock::new(scene),
-            reference_points,
             mesh: Mutex::new(MeshTrack {
-                step,
-                moved: false,
                 cache: VecDeque::new(),
             }),
             lod: Mutex::new(None),
@@ -234,18 +220,7 @@ impl CorePrepared {
         let data = {
             let s = self.scene.read().map_err(poisoned)?;
             let t = s.as_tet().ok_or("not a mesh")?;
-            let mesh = &t.loaded().mesh;
-            match t.series() {
-                _ if step == 0 => StepData {
-                    time: 0.0,
-                    positions: None,
-                    fields: mesh.fields.clone(),
-                },
-                Some(series) => series
-                    .load_step_data(step, mesh)
-                    .map_err(|e| e.to_string())?,
-                None => return Err(format!("time step {step}: not a time series")),
-            }
+            t.load_step_data(step).map_err(|e| format!("{e:#}"))?
         };
         let data = Arc::new(data);
         let mut track = self.mesh.lock().map_err(poisoned)?;
@@ -258,37 +233,13 @@ impl CorePrepared {
     }
 
     fn set_mesh_step(&self, step: usize) -> Result<StepSwitch, String> {
-        if self.mesh.lock().map_err(poisoned)?.step == step {
+        if self.scene.read().map_err(poisoned)?.step() == step {
             return Ok(StepSwitch::Unchanged);
         }
         let data = self.load_mesh_step(step)?;
         let mut s = self.scene.write().map_err(poisoned)?;
         let t = s.as_tet_mut().ok_or("not a mesh")?;
-        let field = t.field().to_owned();
-        let values = &data
-            .fields
-            .iter()
-            .find(|f| f.name == field)
-            .ok_or_else(|| format!("time step {step} has no point array \"{field}\""))?
-            .values;
-        let mut track = self.mesh.lock().map_err(poisoned)?;
-        let err = |e: volume_core::tet::TetError| format!("time step {step}: {e}");
-        // Values first (only the isoranges are refit), then positions if they changed.
-        t.scene_mut().refit_scalars(values).map_err(err)?;
-        match &data.positions {
-            Some(p) => {
-                t.scene_mut().refit_positions(p).map_err(err)?;
-                track.moved = true;
-            }
-            None if track.moved => {
-                t.scene_mut()
-                    .refit_positions(&self.reference_points)
-                    .map_err(err)?;
-                track.moved = false;
-            }
-            None => {}
-        }
-        track.step = step;
+        t.set_step_from(step, &data).map_err(|e| format!("{e:#}"))?;
         Ok(StepSwitch::Refit)
     }
 }
@@ -362,6 +313,21 @@ impl PreparedScene for CorePrepared {
         }
     }
 
+    fn set_field(&self, name: &str, _control: &JobControl) -> Result<ValueInfo, String> {
+        let mut s = self.scene.write().map_err(poisoned)?;
+        let t = s
+            .as_tet_mut()
+            .ok_or_else(|| format!("point array \"{name}\": only tet meshes have point arrays"))?;
+        t.set_field(name).map_err(|e| format!("{e:#}"))?;
+        drop(s);
+        self.value_info()
+            .ok_or_else(|| format!("point array \"{name}\" has no finite values"))
+    }
+
+    fn value_info(&self) -> Option<ValueInfo> {
+        value_info(&*self.scene.read().ok()?)
+    }
+
     fn lod_status(&self) -> Option<LodStatus> {
         let mut cached = self.lod.lock().ok()?;
         // Never wait for a writer: keep the last status while the scene is locked.
@@ -382,6 +348,82 @@ impl PreparedScene for CorePrepared {
     }
 }
 
+/// Range and histogram of the values an in-core scene draws now: every voxel of the current
+/// step (grids), or the drawn point array at the current step (meshes). `None` for `.isot`
+/// (see [`coarsest_level_histogram`]) and data without finite values. Scans every value.
+pub fn value_info(scene: &AnyScene) -> Option<ValueInfo> {
+    let (lo, hi) = scene.value_range()?;
+    let (histogram, histogram_note) = match scene {
+        AnyScene::Grid(g) => {
+            let v = g.volume();
+            let h = volume_core::dispatch_voxels!(&v.data, buf =>
+                Histogram::compute(buf.as_slice(), lo, hi, HISTOGRAM_BINS));
+            let d = v.dims();
+            (
+                h,
+                format!("all {}×{}×{} voxels of the step shown", d[0], d[1], d[2]),
+            )
+        }
+        AnyScene::Tet(t) => {
+            let values = t.field_values()?;
+            (
+                Histogram::compute(values, lo, hi, HISTOGRAM_BINS),
+                format!(
+                    "the {} point values of \"{}\" at the step shown",
+                    values.len(),
+                    t.field()
+                ),
+            )
+        }
+        AnyScene::Ooc(_) => return None,
+    };
+    Some(ValueInfo {
+        value_range: (lo, hi),
+        histogram: Some(histogram),
+        histogram_note,
+    })
+}
+
+/// `.isot`: the histogram of the coarsest level's voxels (the top treelet, read again from
+/// the file; the finest data is never resident as a whole). The coarse level subsamples the
+/// full volume (thesis 004 §7.7), so its histogram has the shape of the full one.
+pub fn coarsest_level_histogram(path: &Path, lo: f64, hi: f64) -> Result<ValueInfo, String> {
+    use volume_core::ooc::{TreeletRecord, TreeletStorage as _};
+    let file = formats::treelet::IsotFile::open(path).map_err(|e| e.to_string())?;
+    let meta = file.meta();
+    let bytes = file
+        .fetch(0, 0)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    macro_rules! top {
+        ($t:ty) => {{
+            let r = TreeletRecord::<$t>::decode(meta, 0, 0, &bytes)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            (
+                Histogram::compute(&r.voxels, lo, hi, HISTOGRAM_BINS),
+                r.voxel_dims,
+            )
+        }};
+    }
+    let (histogram, d) = match meta.voxel_type {
+        VoxelType::U8 => top!(u8),
+        VoxelType::I8 => top!(i8),
+        VoxelType::U16 => top!(u16),
+        VoxelType::I16 => top!(i16),
+        VoxelType::U32 => top!(u32),
+        VoxelType::I32 => top!(i32),
+        VoxelType::F32 => top!(f32),
+        VoxelType::F64 => top!(f64),
+    };
+    Ok(ValueInfo {
+        value_range: (lo, hi),
+        histogram: Some(histogram),
+        histogram_note: format!(
+            "the {}×{}×{} voxels of the coarsest level (top treelet)",
+            d[0], d[1], d[2]
+        ),
+    })
+}
+
 /// What the panels show about a freshly opened scene (scans the values for the histogram;
 /// call from a job).
 pub fn loaded_data(
@@ -392,29 +434,33 @@ pub fn loaded_data(
     let (lo, hi) = scene
         .value_range()
         .ok_or_else(|| format!("{name}: no finite data values"))?;
-    let (kind, dims, histogram) = match &scene {
-        AnyScene::Grid(g) => {
-            let v = g.volume();
-            let h = volume_core::dispatch_voxels!(&v.data, buf =>
-                Histogram::compute(buf.as_slice(), lo, hi, HISTOGRAM_BINS));
-            (DataKindLabel::Grid, v.dims(), Some(h))
+    let info = match &scene {
+        AnyScene::Ooc(_) => {
+            coarsest_level_histogram(scene.path(), lo, hi).unwrap_or_else(|e| ValueInfo {
+                value_range: (lo, hi),
+                histogram: None,
+                histogram_note: format!("no histogram: {e}"),
+            })
         }
-        AnyScene::Tet(t) => {
-            let h = t
-                .loaded()
-                .mesh
-                .field(t.field())
-                .map(|f| Histogram::compute(&f.values, lo, hi, HISTOGRAM_BINS));
-            (DataKindLabel::Tet, [0; 3], h)
-        }
+        s => value_info(s).ok_or_else(|| format!("{name}: no finite data values"))?,
+    };
+    let (kind, dims) = match &scene {
+        AnyScene::Grid(g) => (DataKindLabel::Grid, g.volume().dims()),
+        AnyScene::Tet(_) => (DataKindLabel::Tet, [0; 3]),
         AnyScene::Ooc(o) => {
             let d = o.volume().meta().layout.dims();
             (
                 DataKindLabel::OutOfCore,
                 d.map(|x| usize::try_from(x).unwrap_or(usize::MAX)),
-                None,
             )
         }
+    };
+    let (fields, field) = match scene.as_tet() {
+        Some(t) => (
+            t.field_names().into_iter().map(str::to_owned).collect(),
+            Some(t.field().to_owned()),
+        ),
+        None => (Vec::new(), None),
     };
     let times = (0..scene.step_count())
         .map(|s| scene.time_value(s))
@@ -426,8 +472,11 @@ pub fn loaded_data(
         summary: scene.describe(),
         dims,
         bounds: scene.world_bounds(),
-        value_range: (lo, hi),
-        histogram,
+        value_range: info.value_range,
+        histogram: info.histogram,
+        histogram_note: info.histogram_note,
+        fields,
+        field,
         times,
         scene: Arc::new(CorePrepared::new(scene)),
     })
@@ -452,7 +501,7 @@ fn raw_layout(state: &RawLayoutState) -> Result<formats::raw::RawLayout, String>
 
 fn scene_options(
     raw: Option<&RawLayoutState>,
-    choices: OpenChoices,
+    choices: &OpenChoices,
 ) -> Result<SceneOptions, String> {
     Ok(SceneOptions {
         open: formats::OpenOptions {
@@ -474,11 +523,33 @@ impl Backend for CoreBackend {
         path: &Path,
         raw: Option<&RawLayoutState>,
         choices: OpenChoices,
-        _control: &JobControl,
+        control: &JobControl,
     ) -> Result<LoadedData, String> {
-        let options = scene_options(raw, choices)?;
+        let options = scene_options(raw, &choices)?;
+        // Reading and building take 90% of the bar, the histogram scan the rest.
+        let progress = |f: f32| control.set_progress(0.9 * f);
+        let open_control = OpenControl {
+            cancel: control.cancel_flag(),
+            progress: &progress,
+        };
         // The error chain names the file and the field or offset.
-        let scene = open_scene(path, &options).map_err(|e| format!("{e:#}"))?;
+        let mut scene = open_scene_with(path, &options, &open_control).map_err(|e| {
+            if is_cancelled(&e) {
+                format!("{}: opening cancelled", path.display())
+            } else {
+                format!("{e:#}")
+            }
+        })?;
+        // A restored session's point array, if this mesh has it.
+        if let (Some(want), Some(t)) = (&choices.field, scene.as_tet_mut())
+            && t.field() != want
+            && t.field_names().contains(&want.as_str())
+        {
+            t.set_field(want).map_err(|e| format!("{e:#}"))?;
+        }
+        open_control
+            .checkpoint(1.0)
+            .map_err(|_| format!("{}: opening cancelled", path.display()))?;
         let name = path.file_name().map_or_else(
             || path.display().to_string(),
             |n| n.to_string_lossy().into_owned(),
@@ -491,14 +562,14 @@ impl Backend for CoreBackend {
         choices: OpenChoices,
         control: &JobControl,
     ) -> Result<LoadedData, String> {
-        let (name, scene) = default_scene(choices, control)?;
+        let (name, scene) = default_scene(&choices, control)?;
         loaded_data(name, None, scene)
     }
 }
 
 /// The embedded sample: Marschner–Lobb on the cube [-1, 1]³, `DEFAULT_SAMPLE_SIZE`³ f32.
 pub fn default_scene(
-    choices: OpenChoices,
+    choices: &OpenChoices,
     control: &JobControl,
 ) -> Result<(String, AnyScene), String> {
     let n = DEFAULT_SAMPLE_SIZE;
@@ -540,6 +611,7 @@ mod tests {
             clip_planes: state.clip_planes.clone(),
             options: state.render,
             step: 0,
+            field: None,
             lod_levels: 0,
         }
     }
@@ -565,7 +637,7 @@ mod tests {
         assert_eq!(data.bounds.min, Vec3::splat(-1.0));
         assert!((data.bounds.max - Vec3::splat(1.0)).abs().max_element() < 1e-6);
         assert!(data.summary.contains("64x64x64 f32"), "{}", data.summary);
-        let (_, scene) = default_scene(OpenChoices::default(), &JobControl::default()).unwrap();
+        let (_, scene) = default_scene(&OpenChoices::default(), &JobControl::default()).unwrap();
         let v = scene.as_grid().unwrap().volume();
         let h = 2.0 / (DEFAULT_SAMPLE_SIZE - 1) as f64;
         for (i, j, k) in [(0, 0, 0), (10, 20, 30), (63, 31, 5)] {

@@ -25,6 +25,8 @@ pub enum Command {
     OpenDefault,
     /// Shows file `index` of `state.files`.
     ShowFile(usize),
+    /// Tet meshes: draws another point array (a value refit, no rebuild).
+    SetField(String),
     PickFiles,
     AddSurface,
     RemoveSurface(usize),
@@ -117,6 +119,21 @@ pub fn data_ui(
             if d.step_count() > 1 {
                 ui.label(format!("{} time steps", d.step_count()));
             }
+            if let (Some(current), false) = (&d.field, d.fields.is_empty()) {
+                let mut chosen = current.clone();
+                egui::ComboBox::from_label("Point array")
+                    .selected_text(current.as_str())
+                    .show_ui(ui, |ui| {
+                        for f in &d.fields {
+                            ui.selectable_value(&mut chosen, f.clone(), f.as_str());
+                        }
+                    })
+                    .response
+                    .on_hover_text("the mesh's scalar point array the isosurfaces are drawn of");
+                if &chosen != current {
+                    commands.push(Command::SetField(chosen));
+                }
+            }
         }
         None => {
             ui.label("no data loaded");
@@ -137,14 +154,18 @@ pub fn data_ui(
 }
 
 /// The histogram of the data with a marker per isosurface; `log` compresses tall bins.
+///
+/// It is also a slider: pressing on it picks the nearest surface marker, dragging moves it
+/// (the value under the pointer), so isovalues can be put on the histogram's features.
 pub fn histogram_ui(
     ui: &mut Ui,
     data: &LoadedData,
-    surfaces: &[SurfaceState],
+    surfaces: &mut [SurfaceState],
     log: bool,
 ) -> egui::Response {
-    let size = Vec2::new(ui.available_width(), 64.0);
-    let (rect, response) = ui.allocate_exact_size(size, Sense::hover());
+    let size = Vec2::new(ui.available_width(), 72.0);
+    let (rect, response) = ui.allocate_exact_size(size, Sense::click_and_drag());
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, "Histogram"));
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, ui.visuals().extreme_bg_color);
     let counts: &[u64] = data.histogram.as_ref().map_or(&[], |h| &h.counts);
@@ -152,7 +173,7 @@ pub fn histogram_ui(
         painter.text(
             rect.center(),
             egui::Align2::CENTER_CENTER,
-            "no histogram: the data is not resident (out-of-core)",
+            "no histogram",
             egui::FontId::proportional(11.0),
             ui.visuals().weak_text_color(),
         );
@@ -184,18 +205,44 @@ pub fn histogram_ui(
         );
     }
     let (lo, hi) = data.value_range;
-    for s in surfaces {
-        if hi > lo {
-            let x = rect.left() + ((s.isovalue - lo) / (hi - lo)) as f32 * rect.width();
-            let c = s.color.map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8);
-            let stroke = Stroke::new(
-                if s.visible { 2.0 } else { 1.0 },
-                Color32::from_rgb(c[0], c[1], c[2]),
-            );
-            painter.vline(x, rect.y_range(), stroke);
+    if hi <= lo {
+        return response;
+    }
+    let x_of = |v: f64| rect.left() + ((v - lo) / (hi - lo)) as f32 * rect.width();
+    let value_of =
+        |x: f32| lo + f64::from(((x - rect.left()) / rect.width()).clamp(0.0, 1.0)) * (hi - lo);
+    // Drag: the surface picked at the press follows the pointer.
+    let grab_id = response.id.with("grabbed");
+    if let Some(pos) = response.interact_pointer_pos() {
+        if response.drag_started() || response.clicked() {
+            let nearest = surfaces
+                .iter()
+                .enumerate()
+                .min_by(|(_, a), (_, b)| {
+                    (x_of(a.isovalue) - pos.x)
+                        .abs()
+                        .total_cmp(&(x_of(b.isovalue) - pos.x).abs())
+                })
+                .map(|(i, _)| i);
+            ui.data_mut(|d| d.insert_temp(grab_id, nearest));
+        }
+        let grabbed = ui.data(|d| d.get_temp::<Option<usize>>(grab_id)).flatten();
+        if let Some(s) = grabbed.and_then(|i| surfaces.get_mut(i)) {
+            s.isovalue = value_of(pos.x);
         }
     }
-    response
+    for s in surfaces.iter() {
+        let x = x_of(s.isovalue);
+        let c = s.color.map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8);
+        let stroke = Stroke::new(
+            if s.visible { 2.0 } else { 1.0 },
+            Color32::from_rgb(c[0], c[1], c[2]),
+        );
+        painter.vline(x, rect.y_range(), stroke);
+        // A handle at the top, like a slider's knob.
+        painter.circle_filled(Pos2::new(x, rect.top() + 5.0), 4.0, stroke.color);
+    }
+    response.on_hover_text("drag to move the nearest isovalue")
 }
 
 /// Add/remove surfaces; value slider over the histogram, exact entry, color, opacity, visibility.
@@ -211,7 +258,25 @@ pub fn isosurface_ui(
         return;
     };
     let (lo, hi) = data.value_range;
-    histogram_ui(ui, data, &state.surfaces, *log_histogram);
+    histogram_ui(ui, data, &mut state.surfaces, *log_histogram);
+    ui.horizontal(|ui| {
+        ui.label(
+            egui::RichText::new(format!("{lo:.6} … {hi:.6}"))
+                .small()
+                .weak(),
+        );
+    });
+    if !data.histogram_note.is_empty() {
+        ui.label(
+            egui::RichText::new(if data.histogram.is_some() {
+                format!("histogram of {}", data.histogram_note)
+            } else {
+                data.histogram_note.clone()
+            })
+            .small()
+            .weak(),
+        );
+    }
     ui.checkbox(log_histogram, "Log-scale histogram");
     // Leave room for the slider's label so the panel does not grow frame after frame.
     let slider_width = (ui.available_width() - 150.0).max(60.0);

@@ -24,6 +24,8 @@ pub struct ViewerState {
     pub camera: CameraState,
     /// Saved camera views.
     pub bookmarks: Vec<CameraState>,
+    /// Tet meshes: the point array drawn (`None`: the mesh's first one).
+    pub field: Option<String>,
     pub surfaces: Vec<SurfaceState>,
     pub clip_boxes: Vec<ClipBoxState>,
     pub clip_planes: Vec<ClipPlaneState>,
@@ -39,6 +41,7 @@ impl Default for ViewerState {
             raw_layout: None,
             camera: CameraState::default(),
             bookmarks: Vec::new(),
+            field: None,
             surfaces: Vec::new(),
             clip_boxes: Vec::new(),
             clip_planes: Vec::new(),
@@ -377,6 +380,7 @@ mod tests {
         s.camera.orbit(100.0, 30.0);
         s.render.intersector = IntersectorChoice::Schwarze;
         s.time.step = 7;
+        s.field = Some("pressure".into());
         let back = ViewerState::from_json(&s.to_json()).unwrap();
         assert_eq!(back, s);
     }
