@@ -976,4 +976,57 @@ mod tests {
             }
         }
     }
+
+    /// The all-at-once sub-frustum test equals `Frustum::misses` per group (random boxes,
+    /// groups with zero and mixed-sign directions, partial packets).
+    #[test]
+    fn group_set_hits_equal_per_group_frustum_tests() {
+        let mut seed = 5u64;
+        let mut f = move || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let (mut hit, mut miss) = (0, 0);
+        for trial in 0..300 {
+            let ng = 1 + trial % MAX_GROUPS;
+            let groups: Vec<Frustum> = (0..ng)
+                .map(|g| {
+                    let rays: Vec<Ray> = (0..GROUP)
+                        .map(|i| {
+                            let mut d = Vec3::new(0.3 * f(), 0.3 * f(), -1.0);
+                            if (trial + g) % 5 == 0 && i == 3 {
+                                d.x = 0.0;
+                            }
+                            if (trial + g) % 7 == 0 && i == 4 {
+                                d.y = -d.y.abs() - 0.1;
+                            }
+                            Ray::new(Vec3::new(0.2 * f(), 0.2 * f(), 4.0), d)
+                        })
+                        .collect();
+                    let t0 = vec![0.0; GROUP];
+                    let t1: Vec<f32> = (0..GROUP).map(|_| 4.0 + 3.0 * f()).collect();
+                    Frustum::new(&rays, &t0, &t1)
+                })
+                .collect();
+            let gs = GroupSet::new(&groups);
+            for _ in 0..20 {
+                let lo = Vec3::new(3.0 * f(), 3.0 * f(), 4.0 * f());
+                let hi = lo + Vec3::new(0.2 * (f() + 1.0), 0.2 * (f() + 1.0), 0.2 * (f() + 1.0));
+                let m = gs.hits(lo, hi);
+                for (g, fr) in groups.iter().enumerate() {
+                    let want = !fr.misses(lo, hi);
+                    assert_eq!(m >> g & 1 == 1, want, "trial {trial} group {g}");
+                    if want {
+                        hit += 1;
+                    } else {
+                        miss += 1;
+                    }
+                }
+                assert_eq!(m >> ng, 0, "unused groups never hit");
+            }
+        }
+        assert!(hit > 500 && miss > 500, "{hit} hits, {miss} misses");
+    }
 }
