@@ -867,21 +867,6 @@ pub struct OocData {
     open_time: Duration,
 }
 
-macro_rules! with_ooc {
-    ($v:expr, $s:ident => $body:expr) => {
-        match $v {
-            AnyOocVolume::U8($s) => $body,
-            AnyOocVolume::I8($s) => $body,
-            AnyOocVolume::U16($s) => $body,
-            AnyOocVolume::I16($s) => $body,
-            AnyOocVolume::U32($s) => $body,
-            AnyOocVolume::I32($s) => $body,
-            AnyOocVolume::F32($s) => $body,
-            AnyOocVolume::F64($s) => $body,
-        }
-    };
-}
-
 impl OocData {
     fn open(path: &Path, options: &SceneOptions) -> anyhow::Result<Self> {
         if options.step != 0 {
@@ -947,11 +932,8 @@ impl OocData {
         cancel: &AtomicBool,
     ) -> Option<(Frame, usize)> {
         self.set_isovalues(&settings.active_isovalues().0);
-        with_ooc!(&self.volume, v => {
-            let scene = v.scene(self.intersector);
-            let frame = render(&scene, camera, settings, cancel)?;
-            Some((frame, scene.level()))
-        })
+        self.volume
+            .render_with_level(self.intersector, camera, settings, cancel)
     }
 }
 

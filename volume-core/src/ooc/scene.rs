@@ -1167,6 +1167,23 @@ impl AnyOocVolume {
     ) -> V::Output {
         dispatch_ooc!(self, v => visitor.visit(&v.scene(intersector)))
     }
+
+    /// Renders one frame with the levels loaded now and returns it with the finest level
+    /// that frame could reach (0 = coarsest); `None` if `cancel` was set. The caller
+    /// requests the frame's isovalues first ([`Self::set_isovalues`]).
+    pub fn render_with_level(
+        &self,
+        intersector: Intersector,
+        camera: &crate::render::Camera,
+        settings: &crate::render::RenderSettings,
+        cancel: &AtomicBool,
+    ) -> Option<(crate::render::Frame, usize)> {
+        dispatch_ooc!(self, v => {
+            let scene = v.scene(intersector);
+            let frame = crate::render::render(&scene, camera, settings, cancel)?;
+            Some((frame, scene.level()))
+        })
+    }
 }
 
 #[cfg(test)]
