@@ -20,8 +20,15 @@
 //! cascade of decimation stages ([`HalveStage`]: three planes each), so only the coarse LOD
 //! levels themselves are kept (about `input / 2^height`, 1/512 at the default height 9).
 //! Pass 2 encodes the finest treelets in index order, which is z-slab order, in parallel
-//! batches handed to the sink in order, then the coarse levels from memory. `progress`
-//! counts input voxels read over both passes (`2 × voxels` in all).
+//! batches handed to the sink in order (a batch is written while the next is encoded), then
+//! the coarse levels from memory. `progress` counts input voxels read over both passes
+//! (`2 × voxels` in all).
+//!
+//! Cost per input voxel (issue 5 asks for ≥ 100 MB/s on 2 cores): integer volumes halve
+//! separably in exact arithmetic ([`halve_plane_exact`]); a treelet's ranges come from
+//! separable cell ranges reduced bottom-up over its heap, and node codes of ≤ 16-bit types
+//! from a table ([`NodeCodes`]). Each fast path has a brute-force twin in the tests and
+//! gives the same bytes.
 
 use std::time::{Duration, Instant};
 
@@ -30,7 +37,9 @@ use rayon::prelude::*;
 use super::OocError;
 use super::layout::{TreeletLayout, linear_index};
 use super::quantize::Quantizer;
-use super::treelet::{OocMeta, TreeletRecord, TreeletSink};
+#[cfg(test)]
+use super::treelet::TreeletRecord;
+use super::treelet::{OocMeta, TreeletSink, put_header, start_voxels, voxels_to_le};
 use crate::intersect::{cell_corners, corner_range};
 use crate::stats::ValueStats;
 use crate::volume::Grid;
@@ -38,6 +47,9 @@ use crate::voxel::Voxel;
 
 /// Treelets encoded per parallel batch.
 const BATCH: u64 = 2048;
+
+/// A treelet's root range and its record bytes.
+type Encoded<T> = ([T; 2], Vec<u8>);
 
 /// What a build produced.
 #[derive(Debug, Clone)]
@@ -53,7 +65,7 @@ pub struct BuildReport {
 /// `treelet_height` node levels and hands them to `sink`. `progress(done, total)` is called
 /// after each input plane (pass 1) and each batch (pass 2) with input voxels read so far
 /// over both passes (`total = 2 × voxels`).
-pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
+pub fn build_treelets<T: Voxel, S: TreeletSink + Send + ?Sized>(
     grid: &Grid,
     voxels: &[T],
     layout: TreeletLayout,
@@ -106,32 +118,52 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + ?Sized>(
     let total = layout.treelet_count();
 
     let mut bytes = 0u64;
+    let codes = NodeCodes::new::<T>(&meta.quantizer);
     let mut child_roots: Option<Vec<[T; 2]>> = None;
     for l in (0..n).rev() {
         let lv = *layout.level(l);
         let lod: &[T] = if l == n - 1 { voxels } else { &lods[l] };
+        let encoder = TreeletEncoder::new(&meta, l, lod, child_roots.as_deref(), &codes);
         let count = lv.treelet_count();
         let mut roots = Vec::with_capacity(count as usize);
         let mut first = 0u64;
-        let mut done = 0u64;
-        while first < count {
+        // The previous batch, handed to the sink while the next one is encoded (the sink
+        // copies, checksums and writes pages: serial work that would idle the other cores).
+        let mut pending: Option<(u64, Vec<Encoded<T>>)> = None;
+        while first < count || pending.is_some() {
             let last = (first + BATCH).min(count);
-            let batch: Vec<([T; 2], Vec<u8>)> = (first..last)
-                .into_par_iter()
-                .map(|index| encode_treelet(&meta, l, index, lod, child_roots.as_deref()))
-                .collect();
-            for (i, (root_range, rec)) in batch.into_iter().enumerate() {
-                sink.put(l, first + i as u64, &rec)?;
-                bytes += rec.len() as u64;
-                roots.push(root_range);
-            }
-            done += last - first;
+            let (next, written) = rayon::join(
+                || {
+                    (first < count).then(|| {
+                        (first..last)
+                            .into_par_iter()
+                            .map_init(Scratch::new, |s, index| encoder.encode(index, s))
+                            .collect::<Vec<_>>()
+                    })
+                },
+                || -> Result<Option<u64>, OocError> {
+                    let Some((at, batch)) = pending.take() else {
+                        return Ok(None);
+                    };
+                    let done = at + batch.len() as u64;
+                    for (i, (root_range, rec)) in batch.into_iter().enumerate() {
+                        sink.put(l, at + i as u64, &rec)?;
+                        bytes += rec.len() as u64;
+                        roots.push(root_range);
+                    }
+                    Ok(Some(done))
+                },
+            );
             // Pass 2 reads the finest level once more; coarse levels are tiny.
-            if l == n - 1 {
+            if let Some(done) = written?
+                && l == n - 1
+            {
                 progress(fine_total + fine_total * done / count, work_total);
             }
+            pending = next.map(|b| (first, b));
             first = last;
         }
+        drop(encoder);
         child_roots = Some(roots);
         if l + 1 < n {
             lods[l] = Vec::new();
@@ -157,15 +189,20 @@ fn union<T: Voxel>(a: [T; 2], b: [T; 2]) -> [T; 2] {
 /// Corner ranges of the `n` cells from cell `lo` of `lod` (x fastest), separably: pairs
 /// along x, then y, then z (3 × ~n³ comparisons instead of 8 corner loads and 14
 /// comparisons per cell). Integer voxels only: a float NaN corner empties a cell's range
-/// ([`corner_range`]), which pairwise min/max does not reproduce.
-fn cell_ranges<T: Voxel>(
+/// ([`corner_range`]), which pairwise min/max does not reproduce. `x_pairs` and `y_pairs`
+/// are scratch; the ranges replace the contents of `out`.
+fn cell_ranges_into<T: Voxel>(
     lod: &[T],
     lod_dims: [usize; 3],
     lo: [usize; 3],
     n: [usize; 3],
-) -> Vec<[T; 2]> {
+    x_pairs: &mut Vec<[T; 2]>,
+    y_pairs: &mut Vec<[T; 2]>,
+    out: &mut Vec<[T; 2]>,
+) {
     let [nx, ny, nz] = n;
-    let mut a = Vec::with_capacity(nx * (ny + 1) * (nz + 1));
+    let a = x_pairs;
+    a.clear();
     for z in 0..=nz {
         for y in 0..=ny {
             let at = lo[0] + lod_dims[0] * (lo[1] + y + lod_dims[1] * (lo[2] + z));
@@ -179,7 +216,8 @@ fn cell_ranges<T: Voxel>(
             }));
         }
     }
-    let mut b = Vec::with_capacity(nx * ny * (nz + 1));
+    let b = y_pairs;
+    b.clear();
     for z in 0..=nz {
         for y in 0..ny {
             let r0 = &a[nx * (y + (ny + 1) * z)..][..nx];
@@ -187,60 +225,341 @@ fn cell_ranges<T: Voxel>(
             b.extend(r0.iter().zip(r1).map(|(&p, &q)| union(p, q)));
         }
     }
-    let mut c = Vec::with_capacity(nx * ny * nz);
+    out.clear();
     for z in 0..nz {
         let p0 = &b[nx * ny * z..][..nx * ny];
         let p1 = &b[nx * ny * (z + 1)..][..nx * ny];
-        c.extend(p0.iter().zip(p1).map(|(&p, &q)| union(p, q)));
+        out.extend(p0.iter().zip(p1).map(|(&p, &q)| union(p, q)));
     }
-    c
 }
 
-/// Merged ranges of treelet `(l, index)`; returns its root range and its encoding.
-fn encode_treelet<T: Voxel>(
+/// [`cell_ranges_into`] with fresh buffers (tests).
+#[cfg(test)]
+fn cell_ranges<T: Voxel>(
+    lod: &[T],
+    lod_dims: [usize; 3],
+    lo: [usize; 3],
+    n: [usize; 3],
+) -> Vec<[T; 2]> {
+    let mut out = Vec::new();
+    cell_ranges_into(
+        lod,
+        lod_dims,
+        lo,
+        n,
+        &mut Vec::new(),
+        &mut Vec::new(),
+        &mut out,
+    );
+    out
+}
+
+/// Node codes through a table for voxel types of at most 16 bits: `encode(m, M)` is
+/// `[floor-code(m), ceil-code(M)]` for a non-empty range, so one table lookup per bound
+/// replaces two f64 divisions, `floor`/`ceil` and clamps per node (thesis §7.8.1
+/// conservative quantization, unchanged). Wider types use [`Quantizer::encode`].
+enum NodeCodes {
+    /// Indexed by the voxel's bit pattern (see [`table_index`]).
+    Table {
+        lo: Vec<u8>,
+        hi: Vec<u8>,
+    },
+    Direct,
+}
+
+/// The table index of an at most 16-bit voxel: its bit pattern as an unsigned number.
+#[inline(always)]
+fn table_index<T: Voxel>(v: T) -> usize {
+    let b = bytemuck::bytes_of(&v);
+    if size_of::<T>() == 1 {
+        usize::from(b[0])
+    } else {
+        usize::from(u16::from_ne_bytes([b[0], b[1]]))
+    }
+}
+
+impl NodeCodes {
+    fn new<T: Voxel>(q: &Quantizer) -> Self {
+        if T::TYPE.is_float() || size_of::<T>() > 2 || q.bits > 8 {
+            return Self::Direct;
+        }
+        let (lo, hi) = (0..1usize << (8 * size_of::<T>()))
+            .map(|bits| {
+                let bytes = if size_of::<T>() == 1 {
+                    [bits as u8, 0]
+                } else {
+                    (bits as u16).to_ne_bytes()
+                };
+                let v: T = bytemuck::pod_read_unaligned(&bytes[..size_of::<T>()]);
+                debug_assert_eq!(table_index(v), bits);
+                let c = q.encode(v.to_f64(), v.to_f64());
+                (c[0] as u8, c[1] as u8)
+            })
+            .unzip();
+        Self::Table { lo, hi }
+    }
+
+    /// Appends the packed codes of `ranges` (heap order), as [`Quantizer::put`] lays them out.
+    fn put_all<T: Voxel>(&self, q: &Quantizer, ranges: &[[T; 2]], out: &mut Vec<u8>) {
+        match self {
+            Self::Table { lo, hi } => {
+                let empty = [q.max_code() as u8, 0];
+                if q.bits == 4 {
+                    out.extend(ranges.iter().map(|r| {
+                        let c = if r[0] <= r[1] {
+                            [lo[table_index(r[0])], hi[table_index(r[1])]]
+                        } else {
+                            empty
+                        };
+                        c[0] | (c[1] << 4)
+                    }));
+                } else {
+                    for r in ranges {
+                        let c = if r[0] <= r[1] {
+                            [lo[table_index(r[0])], hi[table_index(r[1])]]
+                        } else {
+                            empty
+                        };
+                        out.extend_from_slice(&c);
+                    }
+                }
+            }
+            Self::Direct => {
+                let at = out.len();
+                out.resize(at + ranges.len() * q.node_bytes(), 0);
+                for (h, r) in ranges.iter().enumerate() {
+                    q.put(&mut out[at..], h, q.encode(r[0].to_f64(), r[1].to_f64()));
+                }
+            }
+        }
+    }
+}
+
+/// Per-worker buffers of [`TreeletEncoder::encode`] (no allocation per treelet but the
+/// record itself).
+struct Scratch<T> {
+    x_pairs: Vec<[T; 2]>,
+    y_pairs: Vec<[T; 2]>,
+    cells: Vec<[T; 2]>,
+    /// The treelet's heap with its bottom (cell) level: `2^(height + 1) − 1` ranges.
+    heap: Vec<[T; 2]>,
+}
+
+impl<T> Scratch<T> {
+    fn new() -> Self {
+        Self {
+            x_pairs: Vec::new(),
+            y_pairs: Vec::new(),
+            cells: Vec::new(),
+            heap: Vec::new(),
+        }
+    }
+}
+
+/// Encodes the treelets of one level. A treelet's merged ranges are its bottom nodes (its
+/// LOD cells, joined with the roots of the finer treelets below) reduced bottom-up over the
+/// heap (`h ← 2h + 1 ∪ 2h + 2`): no recursion, and the cell of each bottom node is a
+/// precomputed offset. Virtual nodes (beyond the volume's cells) start empty and stay empty,
+/// which is what the per-node recursion (`encode_treelet_reference` in the tests) stores.
+struct TreeletEncoder<'a, T: Voxel> {
+    meta: &'a OocMeta,
+    l: usize,
+    lod: &'a [T],
+    lod_dims: [usize; 3],
+    child_roots: Option<&'a [[T; 2]]>,
+    /// Cell offset from the treelet's first cell of each bottom node, heap order.
+    leaf_offsets: Vec<[usize; 3]>,
+    /// The same offsets as indices into the cell ranges of a treelet that the border does
+    /// not clip (the common case: a plain gather).
+    leaf_full_index: Vec<u32>,
+    codes: &'a NodeCodes,
+}
+
+impl<'a, T: Voxel> TreeletEncoder<'a, T> {
+    fn new(
+        meta: &'a OocMeta,
+        l: usize,
+        lod: &'a [T],
+        child_roots: Option<&'a [[T; 2]]>,
+        codes: &'a NodeCodes,
+    ) -> Self {
+        let layout = &meta.layout;
+        let lv = layout.level(l);
+        // Children of heap slot `h` are `2h + 1, 2h + 2`: expanding a level's nodes in
+        // order (left, right) lists the next level in heap order.
+        let mut leaf_offsets = vec![[0usize; 3]];
+        for level in lv.first..lv.end {
+            let a = layout.shape(level).axis;
+            leaf_offsets = leaf_offsets
+                .iter()
+                .flat_map(|&n| {
+                    let mut left = n;
+                    left[a] *= 2;
+                    let mut right = left;
+                    right[a] += 1;
+                    [left, right]
+                })
+                .collect();
+        }
+        let n = lv.root_cells.map(|c| c as usize);
+        let leaf_full_index = leaf_offsets
+            .iter()
+            .map(|o| (o[0] + n[0] * (o[1] + n[1] * o[2])) as u32)
+            .collect();
+        Self {
+            meta,
+            l,
+            lod,
+            lod_dims: lv.lod_dims.map(|d| d as usize),
+            child_roots,
+            leaf_offsets,
+            leaf_full_index,
+            codes,
+        }
+    }
+
+    /// Treelet `index`: its root range and its encoding (the bytes of
+    /// [`super::TreeletRecord::encode`]).
+    fn encode(&self, index: u64, s: &mut Scratch<T>) -> ([T; 2], Vec<u8>) {
+        let meta = self.meta;
+        let layout = &meta.layout;
+        let lv = layout.level(self.l);
+        let root = layout.root_of(self.l, index);
+        let cell_lo = [0, 1, 2].map(|a| root[a] * lv.root_cells[a]);
+        let cell_n = [0, 1, 2]
+            .map(|a| ((cell_lo[a] + lv.root_cells[a]).min(lv.lod_cells[a]) - cell_lo[a]) as usize);
+        let lo = cell_lo.map(|c| c as usize);
+        let float = T::TYPE.is_float();
+        if !float {
+            cell_ranges_into(
+                self.lod,
+                self.lod_dims,
+                lo,
+                cell_n,
+                &mut s.x_pairs,
+                &mut s.y_pairs,
+                &mut s.cells,
+            );
+        }
+        let slots = lv.node_slots();
+        s.heap.clear();
+        s.heap.resize(slots, [T::HIGHEST, T::LOWEST]);
+        let full = (0..3).all(|a| cell_n[a] as u64 == lv.root_cells[a]);
+        if full && !float && self.child_roots.is_none() {
+            let cells = &s.cells;
+            s.heap
+                .extend(self.leaf_full_index.iter().map(|&i| cells[i as usize]));
+        } else {
+            self.bottom_nodes(lo, cell_n, s);
+        }
+        for h in (0..slots).rev() {
+            s.heap[h] = union(s.heap[2 * h + 1], s.heap[2 * h + 2]);
+        }
+        let root_range = s.heap[0];
+        let (origin, bdims) = layout.voxel_block(self.l, root);
+        let record_bytes = meta.record_bytes(self.l, bdims[0] * bdims[1] * bdims[2]) as usize;
+        let mut out = Vec::with_capacity(record_bytes);
+        put_header(&mut out, self.l, lv.height(), index, origin, bdims);
+        self.codes
+            .put_all(&meta.quantizer, &s.heap[..slots], &mut out);
+        let at = start_voxels(&mut out);
+        let row_len = bdims[0] as usize;
+        for k in 0..bdims[2] {
+            for j in 0..bdims[1] {
+                let row =
+                    linear_index(lv.lod_dims, [origin[0], origin[1] + j, origin[2] + k]) as usize;
+                out.extend_from_slice(bytemuck::cast_slice::<T, u8>(&self.lod[row..row + row_len]));
+            }
+        }
+        voxels_to_le::<T>(&mut out[at..]);
+        debug_assert_eq!(out.len(), record_bytes);
+        (root_range, out)
+    }
+
+    /// Appends the bottom nodes of a treelet clipped by the border (virtual nodes stay
+    /// empty), of a float one (per-cell corner ranges: a void corner empties its cell), or
+    /// of one above finer treelets (joined with their roots).
+    fn bottom_nodes(&self, lo: [usize; 3], cell_n: [usize; 3], s: &mut Scratch<T>) {
+        let lv = self.meta.layout.level(self.l);
+        let float = T::TYPE.is_float();
+        let empty = [T::HIGHEST, T::LOWEST];
+        for off in &self.leaf_offsets {
+            if (0..3).any(|a| off[a] >= cell_n[a]) {
+                s.heap.push(empty);
+                continue;
+            }
+            let cell = [0, 1, 2].map(|a| lo[a] + off[a]);
+            let mut r = if float {
+                corner_range(&cell_corners(self.lod, self.lod_dims, cell))
+                    .map_or(empty, |(a, b)| [a, b])
+            } else {
+                s.cells[off[0] + cell_n[0] * (off[1] + cell_n[1] * off[2])]
+            };
+            if let Some(c) = self.child_roots {
+                r = union(
+                    r,
+                    c[linear_index(lv.lod_cells, cell.map(|x| x as u64)) as usize],
+                );
+            }
+            s.heap.push(r);
+        }
+    }
+}
+
+/// The per-node recursion the encoder replaced, with the per-cell corner path: the tests'
+/// brute-force twin of [`TreeletEncoder::encode`].
+#[cfg(test)]
+fn encode_treelet_reference<T: Voxel>(
     meta: &OocMeta,
     l: usize,
     index: u64,
     lod: &[T],
     child_roots: Option<&[[T; 2]]>,
 ) -> ([T; 2], Vec<u8>) {
-    encode_treelet_with(meta, l, index, lod, child_roots, !T::TYPE.is_float())
-}
-
-/// [`encode_treelet`]; `separable` takes the cell ranges from [`cell_ranges`] (the
-/// per-cell corner path is its brute-force twin in the tests).
-fn encode_treelet_with<T: Voxel>(
-    meta: &OocMeta,
-    l: usize,
-    index: u64,
-    lod: &[T],
-    child_roots: Option<&[[T; 2]]>,
-    separable: bool,
-) -> ([T; 2], Vec<u8>) {
+    struct RangeCtx<'a, T: Voxel> {
+        layout: &'a TreeletLayout,
+        end: usize,
+        lod: &'a [T],
+        lod_dims: [usize; 3],
+        lod_cells: [u64; 3],
+        child_roots: Option<&'a [[T; 2]]>,
+    }
+    impl<T: Voxel> RangeCtx<'_, T> {
+        fn subtree(&self, level: usize, node: [u64; 3], h: usize, out: &mut [[T; 2]]) -> [T; 2] {
+            if level == self.end {
+                let cell = node.map(|x| x as usize);
+                let mut r = corner_range(&cell_corners(self.lod, self.lod_dims, cell))
+                    .map_or([T::HIGHEST, T::LOWEST], |(a, b)| [a, b]);
+                if let Some(c) = self.child_roots {
+                    r = union(r, c[linear_index(self.lod_cells, node) as usize]);
+                }
+                return r;
+            }
+            let a = self.layout.shape(level).axis;
+            let child_count = self.layout.shape(level + 1).count[a];
+            let mut left = node;
+            left[a] *= 2;
+            let mut r = self.subtree(level + 1, left, 2 * h + 1, out);
+            let mut right = left;
+            right[a] += 1;
+            if right[a] < child_count {
+                r = union(r, self.subtree(level + 1, right, 2 * h + 2, out));
+            }
+            out[h] = r;
+            r
+        }
+    }
     let layout = &meta.layout;
     let lv = *layout.level(l);
     let root = layout.root_of(l, index);
     let mut ranges = vec![[T::HIGHEST, T::LOWEST]; lv.node_slots()];
-    let lod_dims = lv.lod_dims.map(|d| d as usize);
-    // The treelet's cells: `root_cells` per side from the root's corner, clipped.
-    let cell_lo = [0, 1, 2].map(|a| root[a] * lv.root_cells[a]);
-    let cell_n = [0, 1, 2]
-        .map(|a| ((cell_lo[a] + lv.root_cells[a]).min(lv.lod_cells[a]) - cell_lo[a]) as usize);
-    let cells = separable.then(|| {
-        (
-            cell_ranges(lod, lod_dims, cell_lo.map(|c| c as usize), cell_n),
-            cell_lo,
-            cell_n,
-        )
-    });
     let ctx = RangeCtx {
         layout,
         end: lv.end,
         lod,
-        lod_dims,
+        lod_dims: lv.lod_dims.map(|d| d as usize),
         lod_cells: lv.lod_cells,
         child_roots,
-        cells: cells.as_ref().map(|(c, lo, n)| (c.as_slice(), *lo, *n)),
     };
     let root_range = ctx.subtree(lv.first, root, 0, &mut ranges);
     let q = &meta.quantizer;
@@ -266,52 +585,6 @@ fn encode_treelet_with<T: Voxel>(
         voxels,
     };
     (root_range, rec.encode())
-}
-
-struct RangeCtx<'a, T: Voxel> {
-    layout: &'a TreeletLayout,
-    end: usize,
-    lod: &'a [T],
-    lod_dims: [usize; 3],
-    lod_cells: [u64; 3],
-    child_roots: Option<&'a [[T; 2]]>,
-    /// This treelet's cell ranges from [`cell_ranges`]: ranges, first cell, cells per axis.
-    cells: Option<CellRanges<'a, T>>,
-}
-
-/// A treelet's cell ranges, its first cell and cells per axis.
-type CellRanges<'a, T> = (&'a [[T; 2]], [u64; 3], [usize; 3]);
-
-impl<T: Voxel> RangeCtx<'_, T> {
-    /// Range of `node` at tree level `level`, filling heap slot `h` and below.
-    fn subtree(&self, level: usize, node: [u64; 3], h: usize, out: &mut [[T; 2]]) -> [T; 2] {
-        if level == self.end {
-            let mut r = if let Some((c, lo, n)) = self.cells {
-                let d = [0, 1, 2].map(|a| (node[a] - lo[a]) as usize);
-                c[d[0] + n[0] * (d[1] + n[1] * d[2])]
-            } else {
-                let cell = node.map(|x| x as usize);
-                corner_range(&cell_corners(self.lod, self.lod_dims, cell))
-                    .map_or([T::HIGHEST, T::LOWEST], |(a, b)| [a, b])
-            };
-            if let Some(c) = self.child_roots {
-                r = union(r, c[linear_index(self.lod_cells, node) as usize]);
-            }
-            return r;
-        }
-        let a = self.layout.shape(level).axis;
-        let child_count = self.layout.shape(level + 1).count[a];
-        let mut left = node;
-        left[a] *= 2;
-        let mut r = self.subtree(level + 1, left, 2 * h + 1, out);
-        let mut right = left;
-        right[a] += 1;
-        if right[a] < child_count {
-            r = union(r, self.subtree(level + 1, right, 2 * h + 2, out));
-        }
-        out[h] = r;
-        r
-    }
 }
 
 /// The coarse LOD levels built in one streamed pass: a cascade of [`HalveStage`]s fed the
@@ -500,8 +773,136 @@ impl<T: Voxel> HalveStage<T> {
 }
 
 /// One output plane of a decimation step from its (clamped) input planes `[z − 1, z, z + 1]`
-/// (only the middle one is read when z is not halved).
+/// (only the middle one is read when z is not halved). Integer voxels take the separable
+/// exact path ([`halve_plane_exact`]), floats the per-tap path with void taps left out.
 fn halve_plane<T: Voxel>(
+    planes: [&[T]; 3],
+    sdims: [u64; 3],
+    ddims: [u64; 3],
+    halve: [bool; 3],
+    out: &mut [T],
+) {
+    if T::TYPE.is_float() {
+        halve_plane_taps(planes, sdims, ddims, halve, out);
+    } else if size_of::<T>() <= 2 {
+        halve_plane_exact::<T, f32>(planes, sdims, ddims, halve, out);
+    } else {
+        halve_plane_exact::<T, f64>(planes, sdims, ddims, halve, out);
+    }
+}
+
+/// Accumulator of [`halve_plane_exact`].
+trait ExactSum:
+    Copy + Send + Sync + std::ops::Add<Output = Self> + std::ops::Mul<Output = Self>
+{
+    const ZERO: Self;
+    fn of<T: Voxel>(v: T) -> Self;
+    fn weight(w: u8) -> Self;
+    fn exact(self) -> f64;
+}
+
+impl ExactSum for f32 {
+    const ZERO: Self = 0.0;
+    #[inline(always)]
+    fn of<T: Voxel>(v: T) -> Self {
+        v.to_f32()
+    }
+    #[inline(always)]
+    fn weight(w: u8) -> Self {
+        f32::from(w)
+    }
+    #[inline(always)]
+    fn exact(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl ExactSum for f64 {
+    const ZERO: Self = 0.0;
+    #[inline(always)]
+    fn of<T: Voxel>(v: T) -> Self {
+        v.to_f64()
+    }
+    #[inline(always)]
+    fn weight(w: u8) -> Self {
+        f64::from(w)
+    }
+    #[inline(always)]
+    fn exact(self) -> f64 {
+        self
+    }
+}
+
+/// [`halve_plane_taps`] for integer voxels, separably: each output row sums its (up to 9)
+/// weighted input rows once into a full-width row, then filters that along x. Same result
+/// bit for bit: integer weights `[1 2 1]` per halved axis and one division by `4^halved`
+/// at the end are exact in `A` (f32 for ≤ 16-bit voxels: |sum| ≤ 64 · 2¹⁶ < 2²⁴; f64 for
+/// 32-bit: < 2³⁹ < 2⁵³), as is the per-tap f64 sum (dyadic weights, and the weights sum to
+/// exactly 1), so both round the same exact value.
+fn halve_plane_exact<T: Voxel, A: ExactSum>(
+    planes: [&[T]; 3],
+    sdims: [u64; 3],
+    ddims: [u64; 3],
+    halve: [bool; 3],
+    out: &mut [T],
+) {
+    let sd = sdims.map(|d| d as usize);
+    let dd = ddims.map(|d| d as usize);
+    let sx = sd[0];
+    let plane_len = sd[0] * sd[1];
+    let planes = planes.map(|p| &p[..plane_len]);
+    let halved = halve.iter().filter(|&&h| h).count() as i32;
+    let scale = 0.25f64.powi(halved);
+    let z_taps: &[(usize, u8)] = if halve[2] {
+        &[(0, 1), (1, 2), (2, 1)]
+    } else {
+        &[(1, 1)]
+    };
+    out.par_chunks_mut(dd[0]).enumerate().for_each_init(
+        || vec![A::ZERO; sx],
+        |acc, (j, row)| {
+            let mut y_taps = [(0usize, 0u8); 3];
+            let y_taps: &[(usize, u8)] = if halve[1] {
+                let cy = (2 * j).min(sd[1] - 1);
+                y_taps = [
+                    (cy.saturating_sub(1), 1),
+                    (cy, 2),
+                    ((cy + 1).min(sd[1] - 1), 1),
+                ];
+                &y_taps
+            } else {
+                y_taps[0] = (j, 1);
+                &y_taps[..1]
+            };
+            acc.fill(A::ZERO);
+            for &(zp, wz) in z_taps {
+                for &(y, wy) in y_taps {
+                    let w = A::weight(wz * wy);
+                    let src = &planes[zp][sx * y..][..sx];
+                    for (a, &v) in acc.iter_mut().zip(src) {
+                        *a = *a + w * A::of(v);
+                    }
+                }
+            }
+            if halve[0] {
+                let two = A::weight(2);
+                for (i, dst) in row.iter_mut().enumerate() {
+                    let cx = (2 * i).min(sx - 1);
+                    let s = acc[cx.saturating_sub(1)] + two * acc[cx] + acc[(cx + 1).min(sx - 1)];
+                    *dst = T::from_f64(s.exact() * scale);
+                }
+            } else {
+                for (dst, &s) in row.iter_mut().zip(acc.iter()) {
+                    *dst = T::from_f64(s.exact() * scale);
+                }
+            }
+        },
+    );
+}
+
+/// One output plane, tap by tap in f64 (the general path: void taps are left out and the
+/// weights renormalised).
+fn halve_plane_taps<T: Voxel>(
     planes: [&[T]; 3],
     sdims: [u64; 3],
     ddims: [u64; 3],
@@ -716,10 +1117,12 @@ mod tests {
         }
     }
 
-    /// The separable cell ranges of integer builds equal the per-cell corner path (its
-    /// brute-force twin) record for record, merged coarse levels included.
+    /// The build's encoder (separable cell ranges for integers, bottom-up heap, table
+    /// codes for ≤ 16-bit types) equals the per-node recursion over per-cell corner ranges
+    /// with `Quantizer::encode` (its brute-force twin) record for record, merged coarse
+    /// levels, clipped border treelets and void (NaN) cells included.
     #[test]
-    fn separable_cell_ranges_equal_the_corner_path_for_integer_voxels() {
+    fn encoder_equals_the_recursive_corner_path_record_for_record() {
         fn check<T: Voxel>(voxels: &[T], dims: [usize; 3], h: u32) {
             let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
             let layout = TreeletLayout::new(dims.map(|d| d as u64), h).unwrap();
@@ -733,19 +1136,26 @@ mod tests {
             let lods = pyramid.finish();
             let n = layout.level_count();
             assert!(n >= 2);
+            let codes = NodeCodes::new::<T>(&meta.quantizer);
+            assert_eq!(
+                matches!(codes, NodeCodes::Table { .. }),
+                !T::TYPE.is_float() && size_of::<T>() <= 2
+            );
+            let mut scratch = Scratch::new();
             let mut child: Option<Vec<[T; 2]>> = None;
             for l in (0..n).rev() {
                 let lod: &[T] = if l == n - 1 { voxels } else { &lods[l] };
+                let encoder = TreeletEncoder::new(&meta, l, lod, child.as_deref(), &codes);
                 let mut roots = Vec::new();
                 for i in 0..layout.level(l).treelet_count() {
-                    let (r, corner) =
-                        encode_treelet_with(&meta, l, i, lod, child.as_deref(), false);
-                    let (r2, sep) = encode_treelet_with(&meta, l, i, lod, child.as_deref(), true);
-                    assert_eq!(r, r2, "level {l} treelet {i}");
-                    assert_eq!(corner, sep, "level {l} treelet {i}");
-                    assert_eq!(store.fetch(l, i).unwrap(), sep);
+                    let (r, want) = encode_treelet_reference(&meta, l, i, lod, child.as_deref());
+                    let (r2, got) = encoder.encode(i, &mut scratch);
+                    assert_eq!(r, r2, "{:?} level {l} treelet {i}", T::TYPE);
+                    assert_eq!(want, got, "{:?} level {l} treelet {i}", T::TYPE);
+                    assert_eq!(store.fetch(l, i).unwrap(), got);
                     roots.push(r);
                 }
+                drop(encoder);
                 child = Some(roots);
             }
         }
@@ -755,9 +1165,21 @@ mod tests {
                 .iter()
                 .map(|v| (v * 4.0 + 100.0).clamp(0.0, 255.0) as u8)
                 .collect();
+            let i8s: Vec<i8> = u8s.iter().map(|&v| v.wrapping_sub(128) as i8).collect();
             let i16s: Vec<i16> = f.iter().map(|v| (v * 300.0) as i16).collect();
+            let u16s: Vec<u16> = f.iter().map(|v| (v * 900.0 + 30000.0) as u16).collect();
+            let i32s: Vec<i32> = f.iter().map(|v| (v * 1e7) as i32).collect();
+            // Void cells: a NaN empties its eight cells and is left out of the LOD filter.
+            let mut f32s = f.clone();
+            for i in (0..f32s.len()).step_by(37) {
+                f32s[i] = f32::NAN;
+            }
             check(&u8s, dims, h);
+            check(&i8s, dims, h);
             check(&i16s, dims, h);
+            check(&u16s, dims, h);
+            check(&i32s, dims, h);
+            check(&f32s, dims, h);
         }
         // Directly against corner_range on a block away from the origin.
         let dims = [9usize, 8, 7];
@@ -776,6 +1198,68 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The code tables equal `Quantizer::encode` for every value and for the empty range,
+    /// on value ranges that do and do not span the type.
+    #[test]
+    fn code_tables_equal_the_quantizer() {
+        fn check<T: Voxel>(lo: f64, hi: f64, values: &(impl Iterator<Item = T> + Clone)) {
+            let q = Quantizer::for_type(T::TYPE, lo, hi);
+            let codes = NodeCodes::new::<T>(&q);
+            assert!(matches!(codes, NodeCodes::Table { .. }));
+            for a in values.clone().step_by(7) {
+                for b in values.clone().step_by(5) {
+                    let mut got = Vec::new();
+                    codes.put_all(&q, &[[a, b]], &mut got);
+                    let mut want = vec![0u8; q.node_bytes()];
+                    q.put(&mut want, 0, q.encode(a.to_f64(), b.to_f64()));
+                    assert_eq!(got, want, "{:?} [{a:?}, {b:?}] over [{lo}, {hi}]", T::TYPE);
+                }
+            }
+        }
+        check(0.0, 255.0, &(0..=255u8));
+        check(3.0, 200.0, &(0..=255u8));
+        check(-100.0, 27.0, &(-128..=127i8));
+        check(-3000.0, 17000.0, &(-32768..=32767i16).step_by(131));
+        check(100.0, 60000.0, &(0..=65535u16).step_by(111));
+        check(5.0, 5.0, &(0..=255u8));
+    }
+
+    /// The separable exact halving of integer voxels equals the per-tap f64 path bit for
+    /// bit, for every combination of halved axes, odd and even sizes, and the extremes of
+    /// each type (rounding of exact halves included).
+    #[test]
+    fn exact_halving_equals_the_tap_path_for_integer_voxels() {
+        fn check<T: Voxel>(values: &[T]) {
+            for sdims in [[7u64, 6, 3], [8, 9, 3], [2, 2, 3], [5, 3, 3]] {
+                let plane_len = (sdims[0] * sdims[1]) as usize;
+                let vol: Vec<T> = (0..3 * plane_len)
+                    .map(|i| values[(i * 7 + i / 3) % values.len()])
+                    .collect();
+                let p: Vec<&[T]> = vol.chunks_exact(plane_len).collect();
+                for bits in 0..8u32 {
+                    let halve = [0, 1, 2].map(|a| (bits >> a) & 1 == 1);
+                    let ddims = HalveStage::<T>::new(sdims, halve).ddims;
+                    let planes = if halve[2] {
+                        [p[0], p[1], p[2]]
+                    } else {
+                        [p[1]; 3]
+                    };
+                    let n = (ddims[0] * ddims[1]) as usize;
+                    let (mut want, mut got) = (vec![T::default(); n], vec![T::default(); n]);
+                    halve_plane_taps(planes, sdims, ddims, halve, &mut want);
+                    halve_plane(planes, sdims, ddims, halve, &mut got);
+                    assert_eq!(want, got, "{:?} {sdims:?} {halve:?}", T::TYPE);
+                }
+            }
+        }
+        check(&[0u8, 255, 1, 254, 128, 3, 77]);
+        check(&[i8::MIN, i8::MAX, -1, 0, 1, 5, -77]);
+        check(&[0u16, u16::MAX, 1, 32768, 999, 65534]);
+        check(&[i16::MIN, i16::MAX, -1, 0, 1, -3001, 12345]);
+        check(&[0u32, u32::MAX, 1, 1 << 31, 123_456_789, u32::MAX - 1]);
+        check(&[i32::MIN, i32::MAX, -1, 0, 1, -123_456_789, 987_654_321]);
     }
 
     #[test]
