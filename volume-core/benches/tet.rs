@@ -22,7 +22,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use volume_core::math::Ray;
 use volume_core::render::{
-    Camera, CountStats, IsoScene, Light, NoStats, RenderSettings, Surface, render,
+    Camera, CountStats, IsoScene, Light, NoStats, RenderSettings, Surface, render, render_into,
 };
 use volume_core::tet::{BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetScene, split_hex};
 
@@ -68,7 +68,8 @@ fn cube_mesh(n: usize) -> TetMesh {
     TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap()
 }
 
-/// The data-samples tet ball (`n` cells per axis), field "gaussians".
+/// The data-samples tet ball (`n` cells per axis): field "f" is "gaussians", and
+/// "distance" from the centre (iso 0.85: a sphere covering ~40 % of the pixels).
 fn ball_mesh(n: usize) -> TetMesh {
     const GAUSSIANS: [([f64; 3], f64, f64); 3] = [
         ([0.4, 0.1, 0.0], 1.0, 0.25),
@@ -107,7 +108,7 @@ fn ball_mesh(n: usize) -> TetMesh {
             remap[gid(i + di, j + dj, k + dk)] = 0;
         }
     }
-    let (mut points, mut values) = (Vec::new(), Vec::new());
+    let (mut points, mut values, mut dist) = (Vec::new(), Vec::new(), Vec::new());
     let mut next = 0u32;
     for (g, slot) in remap.iter_mut().enumerate() {
         if *slot == 0 {
@@ -123,6 +124,8 @@ fn ball_mesh(n: usize) -> TetMesh {
                 .sum();
             points.push(p.map(|x| x as f32));
             values.push(v as f32);
+            let d2: f64 = (0..3).map(|a| (p[a] - centre[a]).powi(2)).sum();
+            dist.push(d2.sqrt() as f32);
         }
     }
     let mut tets = Vec::with_capacity(kept.len() * 6);
@@ -131,7 +134,15 @@ fn ball_mesh(n: usize) -> TetMesh {
             CORNERS.map(|[di, dj, dk]| remap[gid(i + di, j + dj, k + dk)]),
         ));
     }
-    TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap()
+    TetMesh::new(
+        points,
+        tets,
+        vec![
+            PointField::new("f", values),
+            PointField::new("distance", dist),
+        ],
+    )
+    .unwrap()
 }
 
 fn best_ms(reps: usize, mut f: impl FnMut()) -> f64 {
@@ -313,20 +324,53 @@ fn trace_packets(
 }
 
 /// Where a frame's time goes (`TET_BENCH_ONLY=probe`); `TET_BENCH_ONLY=loop-empty`,
-/// `loop-frame`, `loop-trace` (cube), `loop-trace-ball` run one part for ~10 s (for
-/// `perf record`).
+/// `loop-frame`, `loop-trace` (cube), `loop-frame-ball`, `loop-frame-sphere` (distance 0.85),
+/// `loop-trace-ball` run one part for
+/// ~10 s (for `perf record`; `TET_BENCH_SIDE` sets the frame side, default 1024, and
+/// `TET_BENCH_LOOPS` a fixed number of loops instead, e.g. 256 and 2 for callgrind).
 fn probe(mode: &str) {
     let cube = cube_mesh(38);
     let scene = TetScene::new(&cube, "f", BvhOptions::default()).unwrap();
     let go = AtomicBool::new(false);
-    let cam = camera(&scene);
     let until = Instant::now() + std::time::Duration::from_secs(10);
+    let side: u32 = std::env::var("TET_BENCH_SIDE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1024);
+    // A fixed number of loops instead of ~10 s (instruction counts under callgrind).
+    let loops: Option<usize> = std::env::var("TET_BENCH_LOOPS")
+        .ok()
+        .and_then(|s| s.parse().ok());
+    let mut done = 0;
+    let mut more = move || {
+        done += 1;
+        loops.map_or(Instant::now() < until, |n| done < n)
+    };
     match mode {
-        "loop-empty" | "loop-frame" => {
-            let iso = if mode == "loop-empty" { 100.0 } else { 0.7 };
-            let s = settings(iso, 1024, true, false);
-            while Instant::now() < until {
-                black_box(render(&scene, &cam, &s, &go).unwrap());
+        "loop-empty" | "loop-frame" | "loop-frame-ball" | "loop-frame-sphere" => {
+            let ball;
+            let (scene, iso) = match mode {
+                "loop-empty" => (&scene, 100.0),
+                "loop-frame" => (&scene, 0.7),
+                "loop-frame-ball" => {
+                    ball = TetScene::new(&ball_mesh(46), "f", BvhOptions::default()).unwrap();
+                    (&ball, 0.5)
+                }
+                _ => {
+                    let field = "distance";
+                    ball = TetScene::new(&ball_mesh(46), field, BvhOptions::default()).unwrap();
+                    (&ball, 0.85)
+                }
+            };
+            let cam = camera(scene);
+            let s = settings(iso, side, true, false);
+            let mut frame = volume_core::render::Frame::default();
+            loop {
+                assert!(render_into(scene, &cam, &s, &go, &mut frame));
+                black_box(&frame);
+                if !more() {
+                    break;
+                }
             }
             return;
         }
@@ -340,30 +384,54 @@ fn probe(mode: &str) {
                     0.5,
                 )
             };
-            let p = bounded_packets(&scene, 1024);
-            while Instant::now() < until {
+            let p = bounded_packets(&scene, side);
+            loop {
                 black_box(trace_packets(&scene, &p, iso, false));
+                if !more() {
+                    break;
+                }
             }
             return;
         }
         _ => {}
     }
-    for (what, iso) in [
-        ("no surface (renderer only)", 100.0f32),
-        ("isovalue 0.7", 0.7),
+    let ball_mesh = ball_mesh(46);
+    let ball = TetScene::new(&ball_mesh, "f", BvhOptions::default()).unwrap();
+    let sphere = TetScene::new(&ball_mesh, "distance", BvhOptions::default()).unwrap();
+    // Whole frames as `isoscope bench` (`render`: a new frame each time) and as an
+    // interactive caller that keeps its frame (`render_into`); all rayon threads.
+    let mut frame = volume_core::render::Frame::default();
+    for (name, scene, what, iso) in [
+        ("cube", &scene, "no surface (renderer only)", 100.0f32),
+        ("cube", &scene, "isovalue 0.7", 0.7),
+        ("ball", &ball, "isovalue 0.5", 0.5),
+        ("ball", &sphere, "distance 0.85", 0.85),
     ] {
+        let cam = camera(scene);
         let s = settings(iso, 1024, true, false);
         let wall = best_ms(10, || {
-            black_box(render(&scene, &cam, &s, &go).unwrap());
+            black_box(render(scene, &cam, &s, &go).unwrap());
         });
         let cpu = cpu_ms_per(|| {
-            black_box(render(&scene, &cam, &s, &go).unwrap());
+            black_box(render(scene, &cam, &s, &go).unwrap());
         });
-        println!("cube frame, {what}: wall {wall:.1} ms, cpu {cpu:.1} ms/frame");
+        let cpu_into = cpu_ms_per(|| {
+            assert!(render_into(scene, &cam, &s, &go, &mut frame));
+        });
+        let wall_into = best_ms(10, || {
+            assert!(render_into(scene, &cam, &s, &go, &mut frame));
+        });
+        println!(
+            "{name} frame, {what}, {} threads: render wall {wall:.1} ms, cpu {cpu:.1} ms/frame; \
+             render_into wall {wall_into:.1} ms, cpu {cpu_into:.1} ms/frame",
+            rayon::current_num_threads()
+        );
     }
-    let ball = ball_mesh(46);
-    let ball = TetScene::new(&ball, "f", BvhOptions::default()).unwrap();
-    for (name, scene, iso) in [("cube", &scene, 0.7f32), ("ball", &ball, 0.5)] {
+    for (name, scene, iso) in [
+        ("cube", &scene, 0.7f32),
+        ("ball", &ball, 0.5),
+        ("ball distance", &sphere, 0.85),
+    ] {
         let p = bounded_packets(scene, 1024);
         let hits = trace_packets(scene, &p, iso, false);
         let cpu = cpu_ms_per(|| {
