@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use thiserror::Error;
 use wide::f32x8;
 
-use crate::math::{Aabb, Ray};
+use crate::math::{Aabb, Ray, float::gamma_f32};
 
 /// How rays leave the camera.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -259,16 +259,40 @@ impl RayGen {
     }
 
     /// `out[i] = ray_from(columns[i], row)` for all 16 columns, 8 rays at a time (pinhole:
-    /// the normalize and the reciprocals are most of a ray's cost). The same IEEE operations
-    /// in the same order as the scalar path, so the rays are bit-identical.
-    pub(crate) fn rays_row(&self, columns: &[Vec3; 16], row: Vec3, out: &mut [Ray; 16]) {
+    /// the normalize and the reciprocals are most of a ray's cost), and where each ray meets
+    /// `bounds`: bit `i` of the result is set when `bounds.intersect(&out[i], 0, inf)` is
+    /// `Some((lo[i], hi[i]))`. The same IEEE operations in the same order as the scalar
+    /// paths (glam's `a < b ? a : b` minimum is `minps(a, b)`, i.e. `f32x8::fast_min`), so
+    /// rays and ranges are bit-identical to [`RayGen::ray_at`] and [`Aabb::intersect`].
+    pub(crate) fn rays_row_in(
+        &self,
+        columns: &[Vec3; 16],
+        row: Vec3,
+        bounds: &Aabb,
+        out: &mut [Ray; 16],
+        lo: &mut [f32; 16],
+        hi: &mut [f32; 16],
+    ) -> u32 {
+        let mut meets = 0u32;
         if self.orthographic {
-            for (o, &c) in out.iter_mut().zip(columns) {
+            for (i, (o, &c)) in out.iter_mut().zip(columns).enumerate() {
                 *o = self.ray_from(c, row);
+                if let Some((a, b)) = bounds.intersect(o, 0.0, f32::INFINITY) {
+                    (lo[i], hi[i]) = (a, b);
+                    meets |= 1 << i;
+                }
             }
-            return;
+            return meets;
         }
         let one = f32x8::splat(1.0);
+        let widen = f32x8::splat(1.0 + 2.0 * gamma_f32(3));
+        // `Aabb::intersect` per axis: `(min - eye) · inv`, `(max - eye) · inv`, glam's
+        // component-wise min/max (`minps`/`maxps` operand order), `· widen` on the far side.
+        let slab = |min: f32, max: f32, eye: f32, inv: f32x8| {
+            let t0 = f32x8::splat(min - eye) * inv;
+            let t1 = f32x8::splat(max - eye) * inv;
+            (t0.fast_min(t1), t0.fast_max(t1) * widen)
+        };
         for half in 0..2 {
             let cols = &columns[8 * half..8 * half + 8];
             let lane = |f: fn(&Vec3) -> f32| f32x8::from(std::array::from_fn(|i| f(&cols[i])));
@@ -279,6 +303,12 @@ impl RayGen {
             let len_recip = one / (x * x + y * y + z * z).sqrt();
             let (x, y, z) = (x * len_recip, y * len_recip, z * len_recip);
             let (ix, iy, iz) = (one / x, one / y, one / z);
+            let (nx, fx) = slab(bounds.min.x, bounds.max.x, self.eye.x, ix);
+            let (ny, fy) = slab(bounds.min.y, bounds.max.y, self.eye.y, iy);
+            let (nz, fz) = slab(bounds.min.z, bounds.max.z, self.eye.z, iz);
+            // glam's `max_element`/`min_element`: max(max(x, y), z) with `a > b ? a : b`.
+            let near = nx.fast_max(ny).fast_max(nz).to_array();
+            let far = fx.fast_min(fy).fast_min(fz).to_array();
             let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
             let (ix, iy, iz) = (ix.to_array(), iy.to_array(), iz.to_array());
             for (i, o) in out[8 * half..8 * half + 8].iter_mut().enumerate() {
@@ -287,8 +317,14 @@ impl RayGen {
                     dir: Vec3::new(x[i], y[i], z[i]),
                     inv_dir: Vec3::new(ix[i], iy[i], iz[i]),
                 };
+                // The clip to `[0, inf]` with `f32::max`/`min`, as `Aabb::intersect`.
+                let (a, b) = (near[i].max(0.0), far[i].min(f32::INFINITY));
+                let k = 8 * half + i;
+                (lo[k], hi[k]) = (a, b);
+                meets |= u32::from(a <= b) << k;
             }
         }
+        meets
     }
 
     /// The unit view direction.
@@ -354,6 +390,7 @@ mod tests {
 
     #[test]
     fn row_and_column_rays_are_bit_identical_to_ray_at() {
+        let mut hits = 0;
         for projection in [Projection::Pinhole, Projection::Orthographic] {
             // Oblique, and axis-aligned (exact zero direction components, infinite
             // reciprocals) through the middle column of an odd-width image.
@@ -378,18 +415,70 @@ mod tests {
                 let raygen = RayGen::new(&cam, w, h);
                 let bits =
                     |r: &Ray| [r.origin, r.dir, r.inv_dir].map(|v| v.to_array().map(f32::to_bits));
+                // Boxes in front, around the eye, and with faces through the eye.
+                let boxes = [
+                    Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)),
+                    Aabb::new(eye - 0.5, eye + Vec3::new(0.25, 3.0, 0.5)),
+                    Aabb::new(eye, eye + 2.0),
+                    Aabb::new(Vec3::new(-2.0, -2.0, eye.z), Vec3::new(2.0, 2.0, eye.z)),
+                    Aabb::EMPTY,
+                ];
                 for (x0, y) in [(0.5, 0.5), (123.25, 77.5), (984.5, 612.5), (500.5, 306.5)] {
                     let columns: [Vec3; 16] =
                         std::array::from_fn(|i| raygen.column(x0 + 0.97 * i as f32));
-                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); 16];
-                    raygen.rays_row(&columns, raygen.row(y), &mut rays);
-                    for (i, r) in rays.iter().enumerate() {
-                        let want = raygen.ray_at(x0 + 0.97 * i as f32, y);
-                        assert_eq!(bits(r), bits(&want), "{projection:?} ({x0}+{i}, {y})");
+                    for b in &boxes {
+                        let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); 16];
+                        let (mut lo, mut hi) = ([0.0; 16], [0.0; 16]);
+                        let meets = raygen.rays_row_in(
+                            &columns,
+                            raygen.row(y),
+                            b,
+                            &mut rays,
+                            &mut lo,
+                            &mut hi,
+                        );
+                        for (i, r) in rays.iter().enumerate() {
+                            let want = raygen.ray_at(x0 + 0.97 * i as f32, y);
+                            assert_eq!(bits(r), bits(&want), "{projection:?} ({x0}+{i}, {y})");
+                            let range = b.intersect(r, 0.0, f32::INFINITY);
+                            let got =
+                                (meets >> i & 1 == 1).then(|| (lo[i].to_bits(), hi[i].to_bits()));
+                            assert_eq!(
+                                got,
+                                range.map(|(a, c)| (a.to_bits(), c.to_bits())),
+                                "{projection:?} ({x0}+{i}, {y}) {b:?}"
+                            );
+                            hits += usize::from(got.is_some());
+                        }
+                    }
+                }
+                // Direction components exactly zero (infinite reciprocals; `0 · inf` on the
+                // faces through the eye).
+                let columns: [Vec3; 16] =
+                    std::array::from_fn(|i| Vec3::new(0.0, 0.1 * i as f32 - 0.8, -1.0));
+                for row in [Vec3::ZERO, Vec3::new(0.0, 0.3, 0.0)] {
+                    for b in &boxes {
+                        let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); 16];
+                        let (mut lo, mut hi) = ([0.0; 16], [0.0; 16]);
+                        let meets =
+                            raygen.rays_row_in(&columns, row, b, &mut rays, &mut lo, &mut hi);
+                        for (i, r) in rays.iter().enumerate() {
+                            let want = raygen.ray_from(columns[i], row);
+                            assert_eq!(bits(r), bits(&want));
+                            let range = b.intersect(r, 0.0, f32::INFINITY);
+                            let got =
+                                (meets >> i & 1 == 1).then(|| (lo[i].to_bits(), hi[i].to_bits()));
+                            assert_eq!(
+                                got,
+                                range.map(|(a, c)| (a.to_bits(), c.to_bits())),
+                                "zero x: {projection:?} {i} {row} {b:?}"
+                            );
+                        }
                     }
                 }
             }
         }
+        assert!(hits > 100, "{hits} rays meet the boxes");
     }
 
     #[test]

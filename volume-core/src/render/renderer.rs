@@ -12,8 +12,10 @@
 //! rays covers a compact 2×2, 4×2, 4×4, … block (good packets for 4- and 8-wide SIMD
 //! traversal and for frusta). Rays come from per-column and per-row camera terms computed
 //! once per tile ([`RayGen::column`], [`RayGen::row`]), bit-identical to
-//! [`RayGen::ray_at`]. Each sample's ray is first cut to the volume bounds and, only when
-//! there are clip regions, to the kept clip intervals ([`super::clip`]). Then the tile runs
+//! [`RayGen::ray_at`]; the same 8-wide pass cuts them to the volume bounds (bit-identical to
+//! [`Aabb::intersect`]). Only samples whose ray meets the bounds (and, when there are clip
+//! regions, keeps a clip interval, [`super::clip`]) get a per-ray state; the tile is painted
+//! with the background first and only those samples are composited over it. Then the tile runs
 //! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
 //! current interval, all together through `IsoScene::first_hit_packet` (the first round's
 //! packet is built while the rays are generated). A hit is shaded and composited front to
@@ -348,10 +350,16 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         TILE as usize * TILE as usize,
         Ray::new(Vec3::ZERO, Vec3::ONE),
     );
+    // Row-major per tile row: each ray's range in the bounds, bit `dx` where it meets them.
+    let mut lo = [[0f32; TILE as usize]; TILE as usize];
+    let mut hi = [[0f32; TILE as usize]; TILE as usize];
+    let mut meets = [0u32; TILE as usize];
     let tile_rows = sc.tile_rays.chunks_exact_mut(TILE as usize);
-    for (row, out) in rows.iter().zip(tile_rows).take(n_y as usize) {
+    for (dy, (row, out)) in rows.iter().zip(tile_rows).enumerate().take(n_y as usize) {
         let out: &mut [Ray; TILE as usize] = out.try_into().expect("a tile row");
-        ctx.raygen.rays_row(&columns, *row, out);
+        meets[dy] =
+            ctx.raygen
+                .rays_row_in(&columns, *row, &ctx.bounds, out, &mut lo[dy], &mut hi[dy]);
     }
     sc.states.clear();
     sc.intervals.clear();
@@ -359,58 +367,56 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     sc.rays.clear();
     sc.t_min.clear();
     sc.t_max.clear();
+    tally.rays.primary += u64::from(n_x * n_y);
     let no_clips = settings.clips.is_empty();
     let traced = !ctx.isovalues.is_empty();
-    for &[dx, dy] in &ctx.order {
-        if dx >= n_x || dy >= n_y {
-            continue;
-        }
-        let pos = dy * TILE + dx;
-        let ray = sc.tile_rays[pos as usize];
-        let range = ctx.bounds.intersect(&ray, 0.0, f32::INFINITY);
-        let iv = sc.intervals.len() as u32;
-        if no_clips {
-            // The one kept interval is the bounds range (what `kept_intervals` returns).
-            if let Some((lo, hi)) = range {
-                sc.intervals.push(Interval::new(lo, hi));
+    // Samples that trace nothing (no bounds range, no kept clip interval or no isovalue)
+    // get no state: step 3 paints the whole tile with the background first.
+    let columns_in = (1u32 << n_x) - 1;
+    if traced && meets.iter().any(|&m| m & columns_in != 0) {
+        for &[dx, dy] in &ctx.order {
+            if dx >= n_x || dy >= n_y || meets[dy as usize] >> dx & 1 == 0 {
+                continue;
             }
-        } else {
-            let range = range.map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
-            kept_intervals(
-                &ray,
-                range,
-                &settings.clips,
-                &mut sc.clip_out,
-                &mut sc.clip_tmp,
-            );
-            sc.intervals.extend_from_slice(&sc.clip_out);
-        }
-        let iv_end = sc.intervals.len() as u32;
-        let done = iv == iv_end || !traced;
-        let t_from = if iv == iv_end {
-            f32::INFINITY
-        } else {
-            sc.intervals[iv as usize].lo
-        };
-        if !done {
+            let pos = dy * TILE + dx;
+            let ray = sc.tile_rays[pos as usize];
+            let range = Interval::new(lo[dy as usize][dx as usize], hi[dy as usize][dx as usize]);
+            let iv = sc.intervals.len() as u32;
+            if no_clips {
+                // The one kept interval is the bounds range (what `kept_intervals` returns).
+                sc.intervals.push(range);
+            } else {
+                kept_intervals(
+                    &ray,
+                    range,
+                    &settings.clips,
+                    &mut sc.clip_out,
+                    &mut sc.clip_tmp,
+                );
+                if sc.clip_out.is_empty() {
+                    continue;
+                }
+                sc.intervals.extend_from_slice(&sc.clip_out);
+            }
+            let iv_end = sc.intervals.len() as u32;
+            let t_from = sc.intervals[iv as usize].lo;
             sc.active.push(sc.states.len() as u32);
             sc.rays.push(ray);
             sc.t_min.push(t_from);
             sc.t_max.push(sc.intervals[iv as usize].hi);
+            sc.states.push(RayState {
+                iv,
+                iv_end,
+                t_from,
+                color: Vec3::ZERO,
+                transmittance: 1.0,
+                depth: f32::INFINITY,
+                layers: 0,
+                pos: pos as u8,
+                done: false,
+            });
         }
-        sc.states.push(RayState {
-            iv,
-            iv_end,
-            t_from,
-            color: Vec3::ZERO,
-            transmittance: 1.0,
-            depth: f32::INFINITY,
-            layers: 0,
-            pos: pos as u8,
-            done,
-        });
     }
-    tally.rays.primary += sc.states.len() as u64;
 
     // 2. Rounds: trace every active ray's current segment together.
     let mut first_round = true;
@@ -498,21 +504,30 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         }
     }
 
-    // 3. Composite over the background, straight into the band.
+    // 3. The tile's pixels: the background (and no depth) everywhere, then the samples
+    //    with a hit composited over it, straight into the band.
     let bg = Vec3::from(settings.background);
     let row_len = settings.width as usize;
     let band_rows = band.depth.len() / row_len;
     let x_tile = (tile[0] * TILE) as usize;
     let step = ctx.scale as usize;
-    // Samples without a hit show the background: `0 + bg · 1` is `bg`, converted once.
+    // `0 + bg · 1` is `bg`: converted once per tile.
     let bg_rgba = [to_u8(bg.x), to_u8(bg.y), to_u8(bg.z), 255];
+    let x0 = x_tile * step;
+    let x1 = ((x_tile + n_x as usize) * step).min(row_len);
+    for y in 0..(n_y as usize * step).min(band_rows) {
+        let row = y * row_len;
+        for px in band.rgba8[4 * (row + x0)..4 * (row + x1)].chunks_exact_mut(4) {
+            px.copy_from_slice(&bg_rgba);
+        }
+        band.depth[row + x0..row + x1].fill(f32::INFINITY);
+    }
     for st in &sc.states {
-        let rgba = if st.layers == 0 {
-            bg_rgba
-        } else {
-            let c = st.color + bg * st.transmittance;
-            [to_u8(c.x), to_u8(c.y), to_u8(c.z), 255]
-        };
+        if st.layers == 0 {
+            continue;
+        }
+        let c = st.color + bg * st.transmittance;
+        let rgba = [to_u8(c.x), to_u8(c.y), to_u8(c.z), 255];
         let (dx, dy) = (
             usize::from(st.pos) % TILE as usize,
             usize::from(st.pos) / TILE as usize,
