@@ -126,6 +126,25 @@ impl IsoPoly {
         (n != Vec3::ZERO).then_some(n)
     }
 
+    /// The faceted shading normal of a hit on this polygon, the isopolygon of the tet with
+    /// vertices `v` (values in `w`) for isovalue `c`: [`IsoPoly::normal`] oriented towards
+    /// increasing value, `+z` when degenerate.
+    #[inline]
+    pub fn oriented_normal(&self, v: &[Vec4; 4], c: f32) -> Vec3 {
+        self.normal().map_or(Vec3::Z, |n| {
+            // n is parallel to the gradient: compare with a below → above direction.
+            let above = v
+                .iter()
+                .find(|p| p.w > c)
+                .map_or(Vec3::ZERO, |p| p.truncate());
+            let below = v
+                .iter()
+                .find(|p| p.w <= c)
+                .map_or(Vec3::ZERO, |p| p.truncate());
+            if n.dot(above - below) < 0.0 { -n } else { n }
+        })
+    }
+
     pub fn bounds(&self) -> (Vec3, Vec3) {
         let mut lo = self.v[0].min(self.v[1]).min(self.v[2]);
         let mut hi = self.v[0].max(self.v[1]).max(self.v[2]);

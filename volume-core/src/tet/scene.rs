@@ -284,25 +284,17 @@ impl TetScene {
             .collect();
     }
 
-    /// Shading normal of a raw hit (module docs).
-    fn hit_normal(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Vec3 {
+    /// Faceted shading normal of a raw hit: its tet's isopolygon extracted again.
+    pub(crate) fn faceted_normal(&self, h: &RawHit, iso: &[f32]) -> Vec3 {
         let ids = &self.tets[h.tet as usize];
         let v = ids.map(|i| self.verts[i as usize]);
         let c = iso[h.surface as usize];
-        let faceted = mt::extract(&v, ids, c)
-            .and_then(|p| p.normal())
-            .map_or(Vec3::Z, |n| {
-                // Orient towards increasing value: n is parallel to the gradient.
-                let above = v
-                    .iter()
-                    .find(|p| p.w > c)
-                    .map_or(Vec3::ZERO, |p| p.truncate());
-                let below = v
-                    .iter()
-                    .find(|p| p.w <= c)
-                    .map_or(Vec3::ZERO, |p| p.truncate());
-                if n.dot(above - below) < 0.0 { -n } else { n }
-            });
+        mt::extract(&v, ids, c).map_or(Vec3::Z, |p| p.oriented_normal(&v, c))
+    }
+
+    /// Shading normal of a raw hit (module docs).
+    fn hit_normal(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Vec3 {
+        let faceted = self.faceted_normal(h, iso);
         if self.normals == TetNormals::Smooth
             && let Some(rows) = self.normal_rows.get(h.tet as usize)
         {
@@ -474,6 +466,35 @@ impl IsoScene for TetScene {
         stats: &mut S,
     ) {
         let mut raw = [None; MAX_PACKET];
+        if self.normals == TetNormals::Faceted && self.packet > 1 {
+            // Faceted normals straight from the traversal (no second extraction per hit).
+            // Same packets as `first_hit_packet_raw` below.
+            let mut normals = [Vec3::ZERO; MAX_PACKET];
+            for chunk in (0..rays.len()).step_by(MAX_PACKET) {
+                let chunk_end = (chunk + MAX_PACKET).min(rays.len());
+                for start in (chunk..chunk_end).step_by(self.packet) {
+                    let end = (start + self.packet).min(chunk_end);
+                    let n = end - start;
+                    self.trace_packet_faceted(
+                        &rays[start..end],
+                        &t_min[start..end],
+                        &t_max[start..end],
+                        isovalues,
+                        &mut raw[..n],
+                        &mut normals[..n],
+                        stats,
+                    );
+                    for k in 0..n {
+                        out[start + k] = raw[k].map(|h| Hit {
+                            t: h.t,
+                            surface: h.surface,
+                            normal: normals[k],
+                        });
+                    }
+                }
+            }
+            return;
+        }
         for start in (0..rays.len()).step_by(MAX_PACKET) {
             let end = (start + MAX_PACKET).min(rays.len());
             let n = end - start;
@@ -489,5 +510,96 @@ impl IsoScene for TetScene {
                 out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isovalues));
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::NoStats;
+    use crate::tet::{PointField, split_hex};
+
+    /// A jittered `n³`-point grid, 6 tets per cell, with a bumpy distance field.
+    fn grid_scene(n: usize, seed: u64) -> TetScene {
+        let mut s = seed;
+        let mut f = move || {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+        };
+        let id = |i: usize, j: usize, k: usize| (i + n * (j + n * k)) as u32;
+        let (mut points, mut values) = (Vec::new(), Vec::new());
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let p = Vec3::new(i as f32 + 0.4 * f(), j as f32 + 0.4 * f(), k as f32);
+                    values.push((p - Vec3::splat(n as f32 * 0.5)).length() + 0.3 * f());
+                    points.push(p.to_array());
+                }
+            }
+        }
+        let mut tets = Vec::new();
+        for k in 0..n - 1 {
+            for j in 0..n - 1 {
+                for i in 0..n - 1 {
+                    tets.extend(split_hex([
+                        id(i, j, k),
+                        id(i + 1, j, k),
+                        id(i + 1, j + 1, k),
+                        id(i, j + 1, k),
+                        id(i, j, k + 1),
+                        id(i + 1, j, k + 1),
+                        id(i + 1, j + 1, k + 1),
+                        id(i, j + 1, k + 1),
+                    ]));
+                }
+            }
+        }
+        let mesh = TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap();
+        TetScene::new(&mesh, "f", BvhOptions::default()).unwrap()
+    }
+
+    /// `first_hit_packet` (faceted normals taken from the traversal's polygons) equals raw
+    /// packet hits with the polygon extracted again (`to_hit`), bit for bit, for every packet
+    /// size and for several isovalues at once.
+    #[test]
+    fn packet_normals_equal_reextracted_normals() {
+        let n = 9;
+        let mut scene = grid_scene(n, 17);
+        let c = n as f32 * 0.5;
+        let eye = Vec3::new(c + 3.0, c - 2.0, -9.0);
+        let rays: Vec<Ray> = (0..600)
+            .map(|i| {
+                let (x, y) = ((i % 24) as f32, (i / 24) as f32);
+                let target = Vec3::new(x * 0.35, y * 0.35, c);
+                Ray::new(eye, (target - eye).normalize())
+            })
+            .collect();
+        let t_min = vec![0.0; rays.len()];
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 5 == 0 { 12.0 } else { f32::INFINITY })
+            .collect();
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        let mut hits_seen = 0;
+        for iso in [vec![2.5f32], vec![3.0, 1.7]] {
+            for packet in [1, 2, 4, 7, 64, 256] {
+                scene.set_packet_size(packet);
+                let mut raw = vec![None; rays.len()];
+                scene.first_hit_packet_raw(&rays, &t_min, &t_max, &iso, &mut raw, &mut NoStats);
+                let mut hits = vec![None; rays.len()];
+                scene.first_hit_packet(&rays, &t_min, &t_max, &iso, &mut hits, &mut NoStats);
+                for (i, (r, h)) in raw.iter().zip(&hits).enumerate() {
+                    let want = r.map(|r| scene.to_hit(&rays[i], &r, &iso));
+                    assert_eq!(
+                        h.map(|h| (h.t.to_bits(), h.surface, bits(h.normal))),
+                        want.map(|h| (h.t.to_bits(), h.surface, bits(h.normal))),
+                        "iso {iso:?}, packet {packet}, ray {i}"
+                    );
+                    hits_seen += usize::from(h.is_some());
+                }
+            }
+        }
+        assert!(hits_seen > 800, "{hits_seen} hits");
     }
 }

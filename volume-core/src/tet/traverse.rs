@@ -49,7 +49,7 @@
 
 use std::cell::RefCell;
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use wide::f32x8;
 
 use super::bvh::{BvhNode, MAX_DEPTH};
@@ -354,16 +354,16 @@ impl GroupSet {
 }
 
 impl TetScene {
-    /// Calls `f(tet, surface, polygon, stats)` for every non-empty isopolygon of the leaf's
-    /// tets: per tet an isorange test per isovalue, then the on-the-fly extraction (§8.2.4);
-    /// NaN-valued tets are void. The one leaf prologue of all traversals.
+    /// Calls `f(tet, surface, vertices, polygon, stats)` for every non-empty isopolygon of
+    /// the leaf's tets: per tet an isorange test per isovalue, then the on-the-fly extraction
+    /// (§8.2.4); NaN-valued tets are void. The one leaf prologue of all traversals.
     #[inline]
     fn leaf_polys<S: Stats>(
         &self,
         n: &BvhNode,
         iso: &[f32],
         stats: &mut S,
-        mut f: impl FnMut(u32, u32, &IsoPoly, &mut S),
+        mut f: impl FnMut(u32, u32, &[Vec4; 4], &IsoPoly, &mut S),
     ) {
         for ti in n.link..n.link + n.count {
             let ids = &self.tets[ti as usize];
@@ -379,7 +379,7 @@ impl TetScene {
                 }
                 stats.extraction();
                 if let Some(poly) = mt::extract(&v, ids, c) {
-                    f(ti, s as u32, &poly, stats);
+                    f(ti, s as u32, &v, &poly, stats);
                 }
             }
         }
@@ -397,7 +397,7 @@ impl TetScene {
         iso: &[f32],
         stats: &mut S,
     ) {
-        self.leaf_polys(n, iso, stats, |ti, s, poly, stats| {
+        self.leaf_polys(n, iso, stats, |ti, s, _, poly, stats| {
             stats.intersection();
             if let Some(t) = mt::intersect(rs, poly)
                 && t >= t_min
@@ -478,6 +478,39 @@ impl TetScene {
         out: &mut [Option<RawHit>],
         stats: &mut S,
     ) {
+        self.trace_packet_impl::<S, false>(rays, t_min, t_max, iso, out, &mut [], stats);
+    }
+
+    /// [`TetScene::trace_packet`] that also writes the faceted shading normal of each ray's
+    /// hit into `normals[i]` (entries of rays without a hit are unspecified). The large
+    /// packets take it from the polygon when the hit is recorded, instead of extracting the
+    /// polygon again afterwards; the result is the same ([`IsoPoly::oriented_normal`]).
+    pub(crate) fn trace_packet_faceted<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [Option<RawHit>],
+        normals: &mut [Vec3],
+        stats: &mut S,
+    ) {
+        assert!(normals.len() >= rays.len());
+        self.trace_packet_impl::<S, true>(rays, t_min, t_max, iso, out, normals, stats);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn trace_packet_impl<S: Stats, const N: bool>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [Option<RawHit>],
+        normals: &mut [Vec3],
+        stats: &mut S,
+    ) {
         let len = rays.len();
         assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
         out[..len].fill(None);
@@ -494,16 +527,26 @@ impl TetScene {
         }
         if len <= 4 {
             self.trace_standard(rays, t_min, t_max, iso, out, stats);
+            if N {
+                for (h, nrm) in out[..len].iter().zip(normals.iter_mut()) {
+                    if let Some(h) = h {
+                        *nrm = self.faceted_normal(h, iso);
+                    }
+                }
+            }
         } else {
             PACKET_SCRATCH.with(|cell| match cell.try_borrow_mut() {
-                Ok(mut sc) => self.trace_large(rays, t_min, t_max, iso, out, stats, &mut sc),
+                Ok(mut sc) => {
+                    self.trace_large::<S, N>(rays, t_min, t_max, iso, out, normals, stats, &mut sc)
+                }
                 // Re-entered from the same thread (not done by the renderer): fresh buffers.
-                Err(_) => self.trace_large(
+                Err(_) => self.trace_large::<S, N>(
                     rays,
                     t_min,
                     t_max,
                     iso,
                     out,
+                    normals,
                     stats,
                     &mut PacketScratch::new(),
                 ),
@@ -582,7 +625,7 @@ impl TetScene {
         iso: &[f32],
         stats: &mut S,
     ) {
-        self.leaf_polys(n, iso, stats, |ti, s, poly, stats| {
+        self.leaf_polys(n, iso, stats, |ti, s, _, poly, stats| {
             for i in first..rs.len() {
                 stats.intersection();
                 if let Some(t) = mt::intersect(&rs[i], poly)
@@ -601,15 +644,17 @@ impl TetScene {
         });
     }
 
-    /// The large-packet traversal (module docs) on 8-ray SIMD blocks.
+    /// The large-packet traversal (module docs) on 8-ray SIMD blocks; with `N`, the faceted
+    /// normal of every recorded hit goes to `normals`.
     #[allow(clippy::too_many_arguments)]
-    fn trace_large<S: Stats>(
+    fn trace_large<S: Stats, const N: bool>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
         iso: &[f32],
         out: &mut [Option<RawHit>],
+        normals: &mut [Vec3],
         stats: &mut S,
         sc: &mut PacketScratch,
     ) {
@@ -706,7 +751,7 @@ impl TetScene {
                 }
                 if n.is_leaf() {
                     stats.leaf();
-                    let hit_groups = self.leaf_large(
+                    let hit_groups = self.leaf_large::<S, N>(
                         n,
                         rays,
                         t_min,
@@ -717,6 +762,7 @@ impl TetScene {
                         &fr,
                         gs,
                         out,
+                        normals,
                         iso,
                         stats,
                     );
@@ -770,7 +816,7 @@ impl TetScene {
     /// Returns the groups (bit `g`) where some ray found a nearer hit.
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn leaf_large<S: Stats>(
+    fn leaf_large<S: Stats, const N: bool>(
         &self,
         n: &BvhNode,
         rays: &[Ray],
@@ -782,13 +828,14 @@ impl TetScene {
         fr: &Frustum,
         gs: &GroupSet,
         out: &mut [Option<RawHit>],
+        normals: &mut [Vec3],
         iso: &[f32],
         stats: &mut S,
     ) -> u32 {
         let len = rays.len();
         let mut hit_groups = 0u32;
         let from_group = gs.valid & (!0u32 << (first / GROUP));
-        self.leaf_polys(n, iso, stats, |ti, s, poly, stats| {
+        self.leaf_polys(n, iso, stats, |ti, s, v, poly, stats| {
             let (plo, phi) = poly.bounds();
             if fr.misses(plo, phi) {
                 return;
@@ -834,6 +881,9 @@ impl TetScene {
                                 if out[r].is_none_or(|h| t[l] < h.t) {
                                     bb[l] = t[l];
                                     out[r] = Some(hit(t[l]));
+                                    if N {
+                                        normals[r] = poly.oriented_normal(v, iso[s as usize]);
+                                    }
                                     hit_groups |= 1 << g;
                                 }
                             }
@@ -851,6 +901,9 @@ impl TetScene {
                             {
                                 bb[l] = t;
                                 out[r] = Some(hit(t));
+                                if N {
+                                    normals[r] = poly.oriented_normal(v, iso[s as usize]);
+                                }
                                 hit_groups |= 1 << g;
                             }
                         }
