@@ -267,6 +267,8 @@ struct GroupSet {
     axis: [[f32x8; 3]; 2],
     t0: [f32x8; 2],
     t1: [f32x8; 2],
+    /// Per half: all its groups' origin bounds are single points (`omin == omax`).
+    common_origin: [bool; 2],
     /// Bit `g` set for the groups in use.
     valid: u32,
 }
@@ -280,6 +282,7 @@ impl GroupSet {
         axis: [[f32x8::ZERO; 3]; 2],
         t0: [f32x8::ZERO; 2],
         t1: [f32x8::ZERO; 2],
+        common_origin: [false; 2],
         valid: 0,
     };
 
@@ -305,7 +308,14 @@ impl GroupSet {
             f32x8::new(std::array::from_fn(|l| row[h * LANES + l]))
         };
         let xyz = |k: usize| [0, 1].map(|h| [0, 1, 2].map(|a| half(&r[k + a], h)));
+        // Unused groups hold 0 for both bounds: equal.
+        let common_origin = [0, 1].map(|h| {
+            (0..3).all(|a| {
+                (h * LANES..(h + 1) * LANES).all(|g| r[a][g].to_bits() == r[3 + a][g].to_bits())
+            })
+        });
         GroupSet {
+            common_origin,
             omin: xyz(0),
             omax: xyz(3),
             imin: xyz(6),
@@ -317,33 +327,60 @@ impl GroupSet {
         }
     }
 
-    /// Bit `g` set for the groups that may meet the box `[lo, hi]` (`!misses`, conservative).
+    /// Bit `g` set for the groups in `want` that may meet the box `[lo, hi]` (`!misses`,
+    /// conservative). Halves (groups 0–7, 8–15) without a wanted group are skipped.
     #[inline]
-    fn hits(&self, lo: Vec3, hi: Vec3) -> u32 {
+    fn hits(&self, lo: Vec3, hi: Vec3, want: u32) -> u32 {
+        let want = want & self.valid;
         let mut m = 0;
-        let zero = f32x8::ZERO;
-        for h in 0..(if self.valid >> LANES == 0 { 1 } else { 2 }) {
-            let mut enter = self.t0[h];
-            let mut exit = self.t1[h];
-            for a in 0..3 {
-                let (i0, i1) = (self.imin[h][a], self.imax[h][a]);
-                let (l, u) = (f32x8::splat(lo[a]), f32x8::splat(hi[a]));
-                let pos = i0.simd_gt(zero);
-                let near = pos.select(l, u);
-                let far = pos.select(u, l);
-                let (x0, x1) = (near - self.omax[h][a], near - self.omin[h][a]);
-                let tn = (x0 * i0).min(x0 * i1).min(x1 * i0).min(x1 * i1);
-                let (y0, y1) = (far - self.omax[h][a], far - self.omin[h][a]);
-                let tf = (y0 * i0).max(y0 * i1).max(y1 * i0).max(y1 * i1);
-                let used = self.axis[h][a];
-                enter = enter.max(used.select(tn, f32x8::NEG_INFINITY));
-                exit = exit.min(used.select(tf, f32x8::INFINITY));
+        for h in 0..2 {
+            // The 8 group bits of this half.
+            if (want >> (h * LANES)) as u8 == 0 {
+                continue;
             }
-            let margin = f32x8::splat(1e-5) * enter.abs().max(exit.abs()) + f32x8::splat(1e-30);
-            let miss = (enter - exit).simd_gt(margin).to_bitmask();
+            let miss = if self.common_origin[h] {
+                self.half_misses::<true>(h, lo, hi)
+            } else {
+                self.half_misses::<false>(h, lo, hi)
+            };
             m |= (!miss & 0xff) << (h * LANES);
         }
-        m & self.valid
+        m & want
+    }
+
+    /// `Frustum::misses` for the 8 groups of half `h`, as a lane mask. With `COMMON` (every
+    /// group's origin bounds are one point, as for pinhole rays) `near - omax` and
+    /// `near - omin` are equal, so two of the four products per bound are dropped: the
+    /// minimum and maximum are the same values and the test the same.
+    #[inline]
+    fn half_misses<const COMMON: bool>(&self, h: usize, lo: Vec3, hi: Vec3) -> u32 {
+        let zero = f32x8::ZERO;
+        let mut enter = self.t0[h];
+        let mut exit = self.t1[h];
+        for a in 0..3 {
+            let (i0, i1) = (self.imin[h][a], self.imax[h][a]);
+            let (l, u) = (f32x8::splat(lo[a]), f32x8::splat(hi[a]));
+            let pos = i0.simd_gt(zero);
+            let near = pos.select(l, u);
+            let far = pos.select(u, l);
+            let (tn, tf) = if COMMON {
+                let x = near - self.omax[h][a];
+                let y = far - self.omax[h][a];
+                ((x * i0).min(x * i1), (y * i0).max(y * i1))
+            } else {
+                let (x0, x1) = (near - self.omax[h][a], near - self.omin[h][a]);
+                let (y0, y1) = (far - self.omax[h][a], far - self.omin[h][a]);
+                (
+                    (x0 * i0).min(x0 * i1).min(x1 * i0).min(x1 * i1),
+                    (y0 * i0).max(y0 * i1).max(y1 * i0).max(y1 * i1),
+                )
+            };
+            let used = self.axis[h][a];
+            enter = enter.max(used.select(tn, f32x8::NEG_INFINITY));
+            exit = exit.min(used.select(tf, f32x8::INFINITY));
+        }
+        let margin = f32x8::splat(1e-5) * enter.abs().max(exit.abs()) + f32x8::splat(1e-30);
+        (enter - exit).simd_gt(margin).to_bitmask()
     }
 
     /// Lowers group `g`'s range end to `t1` (after hits shortened its rays).
@@ -537,7 +574,7 @@ impl TetScene {
         } else {
             PACKET_SCRATCH.with(|cell| match cell.try_borrow_mut() {
                 Ok(mut sc) => {
-                    self.trace_large::<S, N>(rays, t_min, t_max, iso, out, normals, stats, &mut sc)
+                    self.trace_large::<S, N>(rays, t_min, t_max, iso, out, normals, stats, &mut sc);
                 }
                 // Re-entered from the same thread (not done by the renderer): fresh buffers.
                 Err(_) => self.trace_large::<S, N>(
@@ -723,7 +760,7 @@ impl TetScene {
                         let mut gm = gs.valid & after;
                         if ng > 1 && gm != 0 {
                             stats.box_test(u64::from(gm.count_ones()));
-                            gm &= gs.hits(lo, hi);
+                            gm = gs.hits(lo, hi, gm);
                         }
                         let mut found = None;
                         'search: while gm != 0 {
@@ -842,7 +879,7 @@ impl TetScene {
             }
             let mut gm = from_group;
             if from_group & !1 != 0 {
-                gm &= gs.hits(plo, phi);
+                gm = gs.hits(plo, phi, gm);
             }
             let hit = |t: f32| RawHit {
                 t,
@@ -1055,7 +1092,13 @@ mod tests {
                             if (trial + g) % 7 == 0 && i == 4 {
                                 d.y = -d.y.abs() - 0.1;
                             }
-                            Ray::new(Vec3::new(0.2 * f(), 0.2 * f(), 4.0), d)
+                            // Even trials: one origin for all rays (pinhole packets).
+                            let o = if trial % 2 == 0 {
+                                Vec3::new(0.05, -0.03, 4.0)
+                            } else {
+                                Vec3::new(0.2 * f(), 0.2 * f(), 4.0)
+                            };
+                            Ray::new(o, d)
                         })
                         .collect();
                     let t0 = vec![0.0; GROUP];
@@ -1064,12 +1107,19 @@ mod tests {
                 })
                 .collect();
             let gs = GroupSet::new(&groups);
-            for _ in 0..20 {
+            assert_eq!(gs.common_origin[0], trial % 2 == 0, "trial {trial}");
+            for k in 0..20 {
                 let lo = Vec3::new(3.0 * f(), 3.0 * f(), 4.0 * f());
                 let hi = lo + Vec3::new(0.2 * (f() + 1.0), 0.2 * (f() + 1.0), 0.2 * (f() + 1.0));
-                let m = gs.hits(lo, hi);
+                // Every other box asks for a part of the groups only.
+                let wanted = if k % 2 == 0 {
+                    u32::MAX
+                } else {
+                    (f().to_bits() >> 7) & 0xffff
+                };
+                let m = gs.hits(lo, hi, wanted);
                 for (g, fr) in groups.iter().enumerate() {
-                    let want = !fr.misses(lo, hi);
+                    let want = !fr.misses(lo, hi) && wanted >> g & 1 == 1;
                     assert_eq!(m >> g & 1 == 1, want, "trial {trial} group {g}");
                     if want {
                         hit += 1;
