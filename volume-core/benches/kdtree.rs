@@ -17,7 +17,11 @@
 //! `scene packet` (`GridScene::first_hit_packet`: per-packet setup, traversal,
 //! intersection, normals), `scene single` (`first_hit`), `tree packet` (only
 //! `KdTree::first_hit_packet` on precomputed traversal-unit rays), `normals` (only
-//! `normal_at` at the frame's hits) and the DDA. `KDBENCH_FRAMES` sets the median count.
+//! `normal_at` at the frame's hits) and the DDA. `KDBENCH_FRAMES` sets the median count,
+//! `KDBENCH_SIZE` the image side (default 1024), `KDBENCH_MODES` a comma list of the modes
+//! to time (`scene-packet,scene-single,tree-packet,normals,dda`, default all): with a small
+//! frame, one mode and `RAYON_NUM_THREADS=1` the run suits `valgrind --tool=callgrind`
+//! (instruction counts do not depend on the machine's load).
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -461,7 +465,13 @@ fn trace_summary() {
         },
     )
     .unwrap();
-    let size = 1024u32;
+    let size: u32 = std::env::var("KDBENCH_SIZE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1024);
+    let modes = std::env::var("KDBENCH_MODES")
+        .unwrap_or_else(|_| "scene-packet,scene-single,tree-packet,normals,dda".into());
+    let on = |m: &str| modes.split(',').any(|x| x.trim() == m);
     let cam = Camera::orbit(&ct.world_bounds(), 30.0, 20.0, 40.0);
     let tiles = frame_tiles(&ct, &cam, size);
     let isos = [300.0f32];
@@ -575,7 +585,11 @@ fn trace_summary() {
                 },
             )
     };
-    let (_, cell_hits) = tree_packet(true);
+    let cell_hits = if on("normals") {
+        tree_packet(true).1
+    } else {
+        vec![]
+    };
     let normals = || -> usize {
         cell_hits
             .par_chunks(256)
@@ -602,21 +616,30 @@ fn trace_summary() {
             })
             .sum()
     };
+    // Hits are checked between the selected modes (the packet frame is the reference).
     let hits = scene_packet();
-    assert_eq!(hits, scene_single(), "packet and single hits differ");
-    assert_eq!(hits, tree_packet(false).0, "tree-only hits differ");
+    if on("scene-single") {
+        assert_eq!(hits, scene_single(), "packet and single hits differ");
+    }
+    if on("tree-packet") {
+        assert_eq!(hits, tree_packet(false).0, "tree-only hits differ");
+    }
     println!(
         "CT-like i16 256×256×110 @{size}², iso 300, unstored levels {unstored}: {n_rays} rays in the bounds, {hits} hits, {frames} frames (median)"
     );
     println!(
         "| mode | wall ms/frame (median) | CPU ms/frame (mean) | Mrays/s (per pixel, wall) | vs DDA (CPU) |"
     );
-    let (dd_wall, dd) = wall_and_cpu(
-        || {
-            black_box(dda_frame());
-        },
-        1,
-    );
+    let (dd_wall, dd) = if on("dda") {
+        wall_and_cpu(
+            || {
+                black_box(dda_frame());
+            },
+            1,
+        )
+    } else {
+        (f64::NAN, f64::NAN)
+    };
     let row = |name: &str, (wall, cpu): (f64, f64)| {
         println!(
             "| {name} | {:.1} | {:.1} | {:.2} | {:.1}× |",
@@ -626,43 +649,42 @@ fn trace_summary() {
             dd / cpu
         );
     };
-    row(
-        "scene packet (setup + traversal + normals)",
-        wall_and_cpu(
-            || {
+    let timed = |f: &dyn Fn()| wall_and_cpu(f, frames);
+    if on("scene-packet") {
+        row(
+            "scene packet (setup + traversal + normals)",
+            timed(&|| {
                 black_box(scene_packet());
-            },
-            frames,
-        ),
-    );
-    row(
-        "scene single",
-        wall_and_cpu(
-            || {
+            }),
+        );
+    }
+    if on("scene-single") {
+        row(
+            "scene single",
+            timed(&|| {
                 black_box(scene_single());
-            },
-            frames,
-        ),
-    );
-    row(
-        "tree packet (traversal + intersection)",
-        wall_and_cpu(
-            || {
+            }),
+        );
+    }
+    if on("tree-packet") {
+        row(
+            "tree packet (traversal + intersection)",
+            timed(&|| {
                 black_box(tree_packet(false));
-            },
-            frames,
-        ),
-    );
-    row(
-        "normals at the hits",
-        wall_and_cpu(
-            || {
+            }),
+        );
+    }
+    if on("normals") {
+        row(
+            "normals at the hits",
+            timed(&|| {
                 black_box(normals());
-            },
-            frames,
-        ),
-    );
-    row("DDA single", (dd_wall, dd));
+            }),
+        );
+    }
+    if on("dda") {
+        row("DDA single", (dd_wall, dd));
+    }
 }
 
 fn bench(c: &mut Criterion) {
