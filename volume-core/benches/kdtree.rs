@@ -32,7 +32,7 @@ use rayon::prelude::*;
 use volume_core::grid_scene::{GridScene, normal_at};
 use volume_core::intersect::methods::Exact;
 use volume_core::intersect::{CellHit, Intersector, IsoSet, LocalRay};
-use volume_core::kdtree::{KdTreeConfig, PACKET_WIDTH, packet_compatible};
+use volume_core::kdtree::{KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible};
 use volume_core::math::Ray;
 use volume_core::render::{
     Camera, CountStats, IsoScene, NoStats, RayGen, RenderSettings, Stats, Surface, TILE, render,
@@ -525,6 +525,7 @@ fn trace_summary() {
             .map(|(_, l)| {
                 let mut hits = 0;
                 let mut found = vec![];
+                let mut stack = PacketStack::default();
                 for chunk in l.chunks(PACKET_WIDTH) {
                     let rays: [LocalRay; PACKET_WIDTH] =
                         std::array::from_fn(|i| chunk.get(i).map_or(chunk[0].0, |c| c.0));
@@ -535,7 +536,8 @@ fn trace_summary() {
                         std::array::from_fn(|i| chunk.get(i).map_or(0.0, |c| c.2));
                     let mut out = [None; PACKET_WIDTH];
                     if packet_compatible(&rays[..n]) {
-                        ct.tree().first_hit_packet(
+                        ct.tree().first_hit_packet_in(
+                            &mut stack,
                             ct.frame(),
                             ct.voxels(),
                             &rays[..n],

@@ -26,7 +26,7 @@ use glam::{DVec3, Vec3};
 use crate::dda::DdaScene;
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, packet_compatible};
+use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
@@ -194,8 +194,10 @@ impl<T: Voxel> GridScene<T> {
 
     /// Up to [`PACKET_WIDTH`] rays as one SIMD packet when their directions allow it
     /// ([`crate::kdtree::packet_compatible`]), else one by one; same results either way.
+    /// `stack` is scratch, reused across calls.
     pub fn packet_with<C: CellIntersector, S: Stats>(
         &self,
+        stack: &mut PacketStack,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
@@ -208,29 +210,47 @@ impl<T: Voxel> GridScene<T> {
         let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
         let mut t0 = [f32::INFINITY; PACKET_WIDTH];
         let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
+        // Rays from one eye (a pinhole camera) share the origin's f64 transform.
+        let mut last_origin: Option<([u32; 3], Vec3)> = None;
         for i in 0..n {
             stats.ray();
-            local[i] = self.frame.to_local(&rays[i]);
+            let bits = rays[i].origin.to_array().map(f32::to_bits);
+            let origin = match last_origin {
+                Some((b, o)) if b == bits => o,
+                _ => {
+                    let o = self.frame.local_origin(rays[i].origin);
+                    last_origin = Some((bits, o));
+                    o
+                }
+            };
+            local[i] = LocalRay::new(origin, self.frame.local_dir(rays[i].dir));
             if let Some((a, b)) = self.frame.clip(&local[i], t_min[i], t_max[i]) {
                 t0[i] = a;
                 t1[i] = b;
             }
         }
         let mut cell_hits = [None; PACKET_WIDTH];
-        if packet_compatible(&local[..n]) {
-            self.tree.first_hit_packet(
-                &self.frame,
-                self.voxels.as_slice(),
-                &local[..n],
-                &t0[..n],
-                &t1[..n],
-                isos,
-                intersector,
-                stats,
-                &mut cell_hits[..n],
-            );
-        } else {
-            for i in 0..n {
+        // The whole group as one packet if it can be; else groups of 8 (a packet, or one
+        // by one: rays on both sides of an axis-parallel direction).
+        let groups = if packet_compatible(&local[..n]) { n } else { 8 };
+        for start in (0..n).step_by(groups) {
+            let end = (start + groups).min(n);
+            if packet_compatible(&local[start..end]) {
+                self.tree.first_hit_packet_in(
+                    stack,
+                    &self.frame,
+                    self.voxels.as_slice(),
+                    &local[start..end],
+                    &t0[start..end],
+                    &t1[start..end],
+                    isos,
+                    intersector,
+                    stats,
+                    &mut cell_hits[start..end],
+                );
+                continue;
+            }
+            for i in start..end {
                 if t0[i] <= t1[i] && local[i].dir != Vec3::ZERO {
                     cell_hits[i] = self.tree.first_hit(
                         &self.frame,
@@ -501,9 +521,10 @@ impl<T: Voxel> IsoScene for GridScene<T> {
     ) {
         crate::dispatch_intersector!(self.intersector, c => {
             let isos = IsoSet::new(isovalues);
+            let mut stack = PacketStack::default();
             for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
                 let base = start * PACKET_WIDTH;
-                self.packet_with(chunk, &t_min[base..], &t_max[base..], &isos, c, &mut out[base..], stats);
+                self.packet_with(&mut stack, chunk, &t_min[base..], &t_max[base..], &isos, c, &mut out[base..], stats);
             }
         });
     }

@@ -546,3 +546,54 @@ fn packet_comparison_sees_hits() {
     let hits = packets_equal_single(&grid, &voxels, &[100.5, 200.0], &mut rng);
     assert!(hits > 200, "{hits}");
 }
+
+/// Packets of 16 rays whose halves differ in direction signs (the eye looks across a
+/// coordinate plane: the group is split into two packets of 8), and groups of 16 sharing
+/// signs (one packet): every ray equals its single-ray hit.
+#[test]
+fn packet_groups_with_mixed_signs_equal_single_rays() {
+    let mut rng = Lcg(77);
+    let dims = [24, 19, 13];
+    let grid = grid_for(dims, &mut rng, false);
+    let voxels: Vec<f32> = (0..dims.iter().product::<usize>())
+        .map(|_| rng.range(-1.0, 1.0))
+        .collect();
+    let scene = GridScene::new(
+        &grid,
+        VoxelBuffer::from_vec(voxels),
+        Intersector::Exact,
+        KdTreeConfig::default(),
+    )
+    .unwrap();
+    let b = scene.world_bounds();
+    let c = (b.min + b.max) * 0.5;
+    let ext = b.max - b.min;
+    let (mut hits, mut total) = (0, 0);
+    for trial in 0..200 {
+        let eye = c + Vec3::new(rng.range(-0.3, 0.3), -1.5, rng.range(-0.3, 0.3)) * ext;
+        // Targets left and right of the eye's x (mixed halves) or all on one side.
+        let mixed = trial % 2 == 0;
+        let rays: Vec<Ray> = (0..16)
+            .map(|i| {
+                let side = if mixed && i >= 8 { -1.0 } else { 1.0 };
+                let target = Vec3::new(
+                    eye.x + side * rng.range(0.05, 0.4) * ext.x,
+                    c.y + rng.range(-0.3, 0.3) * ext.y,
+                    c.z + rng.range(-0.3, 0.3) * ext.z,
+                );
+                Ray::new(eye, (target - eye).normalize())
+            })
+            .collect();
+        let t0 = vec![0.0; 16];
+        let t1 = vec![f32::INFINITY; 16];
+        let mut out = vec![None; 16];
+        scene.first_hit_packet(&rays, &t0, &t1, &[0.25], &mut out, &mut NoStats);
+        for i in 0..16 {
+            let single = scene.first_hit(&rays[i], 0.0, f32::INFINITY, &[0.25], &mut NoStats);
+            assert_eq!(out[i], single, "trial {trial} ray {i}");
+            hits += usize::from(single.is_some());
+            total += 1;
+        }
+    }
+    assert!(hits > total / 2, "{hits} of {total}");
+}

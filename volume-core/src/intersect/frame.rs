@@ -47,6 +47,8 @@ pub struct TraversalFrame {
     /// (`M⁻ᵀ · diag(units_per_grid)`, with `M` the linear part of `world_from_grid`).
     world_gradient_from_local: DMat3,
     world_bounds: Aabb,
+    /// The far corner of the volume in traversal units (`pos[a][cells[a]]`; zero when empty).
+    upper: Vec3,
 }
 
 impl TraversalFrame {
@@ -90,6 +92,11 @@ impl TraversalFrame {
                 b
             }
         };
+        let upper = if cells.contains(&0) {
+            Vec3::ZERO
+        } else {
+            Vec3::from([0, 1, 2].map(|a| pos[a][cells[a]]))
+        };
         Self {
             grid_from_world: grid.world_from_grid().map(|w| w.inverse()),
             origin_grid,
@@ -98,6 +105,7 @@ impl TraversalFrame {
             cells,
             world_gradient_from_local,
             world_bounds,
+            upper,
         }
     }
 
@@ -118,13 +126,27 @@ impl TraversalFrame {
     /// The world ray in traversal units (f64 transform, then f32).
     #[inline]
     pub fn to_local(&self, ray: &Ray) -> LocalRay {
-        let mut o = ray.origin.as_dvec3();
-        let mut d = ray.dir.as_dvec3();
+        LocalRay::new(self.local_origin(ray.origin), self.local_dir(ray.dir))
+    }
+
+    /// The origin part of [`TraversalFrame::to_local`] (a point, independent of the
+    /// direction: rays from one eye share it).
+    #[inline]
+    pub fn local_origin(&self, origin: Vec3) -> Vec3 {
+        let mut o = origin.as_dvec3();
         if let Some(inv) = self.grid_from_world {
             o = inv.transform_point3(o);
+        }
+        ((o - self.origin_grid) * self.units_per_grid).as_vec3()
+    }
+
+    /// The direction part of [`TraversalFrame::to_local`].
+    #[inline]
+    pub fn local_dir(&self, dir: Vec3) -> Vec3 {
+        let mut d = dir.as_dvec3();
+        if let Some(inv) = self.grid_from_world {
             d = inv.transform_vector3(d);
         }
-        let o = (o - self.origin_grid) * self.units_per_grid;
         let mut d = (d * self.units_per_grid).as_vec3();
         // Components negligible against the largest become exactly 0, so every nonzero
         // component has a finite reciprocal (traversal treats 0 as "in the plane").
@@ -134,7 +156,7 @@ impl TraversalFrame {
                 d[a] = 0.0;
             }
         }
-        LocalRay::new(o.as_vec3(), d)
+        d
     }
 
     /// The ray's overlap with the volume bounds, clipped to `[t_min, t_max]`.
@@ -143,12 +165,7 @@ impl TraversalFrame {
         if self.is_empty() {
             return None;
         }
-        let hi = Vec3::new(
-            self.pos[0][self.cells[0]],
-            self.pos[1][self.cells[1]],
-            self.pos[2][self.cells[2]],
-        );
-        slab(ray, Vec3::ZERO, hi, t_min, t_max)
+        slab(ray, Vec3::ZERO, self.upper, t_min, t_max)
     }
 
     /// Lower and upper corner of cell `c` in traversal units.

@@ -7,9 +7,12 @@
 //! (z: 4 linear functions, y: 2 quadratics, x: 1 cubic), each step a lerp between two
 //! corners, which keeps every intermediate within the corner range.
 
+use wide::f32x8;
+
 use crate::voxel::{Voxel, VoxelType};
 
-use super::{CellIntersector, CellSegment};
+use super::packet::LANES;
+use super::{CellIntersector, CellSegment, RootsX8, SegmentsX8};
 
 /// Corner differences `v − iso` as `f32`, scaled by an exact power of two (or `1/max` when
 /// the range leaves `f32`) so that the largest lies in a safe range: values near `f32::MAX`
@@ -295,6 +298,45 @@ impl CellIntersector for Exact {
         };
         exact_first_root(&k, gmax, true)
     }
+
+    /// The corner differences once per cell, the segments' cubics and the Bernstein early out
+    /// 8 lanes at a time; only lanes that are not clear run the scalar root search.
+    #[inline(always)]
+    fn first_roots_x8<T: Voxel>(
+        &self,
+        corners: &[T; 8],
+        iso: f32,
+        seg: &SegmentsX8<'_>,
+        mask: u32,
+    ) -> RootsX8 {
+        let mut r = RootsX8 {
+            s: [0.0; LANES],
+            mask: 0,
+        };
+        let (g, gmax) = corner_diffs(corners, iso);
+        if gmax == 0.0 {
+            // `setup`'s Err: the cell equals the isovalue, every segment is hit at its entry.
+            r.mask = mask;
+            return r;
+        }
+        let (p0, dp) = seg.local_f32();
+        let k = cubic_x8(&g, p0, dp);
+        let tol = 64.0 * f32::EPSILON * gmax;
+        // Lanes with f(0) = 0 are never clear (see bernstein_clear), so they reach the
+        // scalar method, which returns 0 for them first thing.
+        let mut bits = mask & !bernstein_clear_x8(&k, tol);
+        let k = k.map(f32x8::to_array);
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            // The early out already said "not clear" for this lane (same operations).
+            if let Some(s) = exact_first_root(&[k[0][i], k[1][i], k[2][i], k[3][i]], gmax, false) {
+                r.s[i] = s;
+                r.mask |= 1 << i;
+            }
+        }
+        r
+    }
 }
 
 /// [`Exact`] on the cubic `k` of a cell whose largest corner difference is `gmax`;
@@ -358,6 +400,49 @@ fn bernstein_clear(k: &[f32; 4], tol: f32) -> bool {
     let lo = d.min(b1).min(b2.min(b3));
     let hi = d.max(b1).max(b2.max(b3));
     lo > margin || hi < -margin
+}
+
+/// [`cubic_f32`] lane-wise (the same operations in the same order, so each lane is
+/// bit-identical to the scalar cubic).
+#[inline(always)]
+pub(crate) fn cubic_x8(g: &[f32; 8], p0: [f32x8; 3], dp: [f32x8; 3]) -> [f32x8; 4] {
+    let mut al = [f32x8::ZERO; 4];
+    let mut be = [f32x8::ZERO; 4];
+    for xy in 0..4 {
+        let (g0, g1) = (g[xy], g[xy + 4]);
+        let dz = f32x8::splat(g1 - g0);
+        al[xy] = f32x8::splat(g0) + dz * p0[2];
+        be[xy] = dz * dp[2];
+    }
+    let mut q = [[f32x8::ZERO; 3]; 2];
+    for x in 0..2 {
+        let (a0, b0, a1, b1) = (al[x], be[x], al[x + 2], be[x + 2]);
+        let (da, db) = (a1 - a0, b1 - b0);
+        q[x] = [a0 + da * p0[1], b0 + db * p0[1] + da * dp[1], db * dp[1]];
+    }
+    let [h0, h1] = q;
+    let dh = [h1[0] - h0[0], h1[1] - h0[1], h1[2] - h0[2]];
+    [
+        dh[2] * dp[0],
+        h0[2] + dh[2] * p0[0] + dh[1] * dp[0],
+        h0[1] + dh[1] * p0[0] + dh[0] * dp[0],
+        h0[0] + dh[0] * p0[0],
+    ]
+}
+
+/// [`bernstein_clear`] lane-wise: bit `i` set when lane `i` is clear (same operations;
+/// `wide`'s `min`/`max` ignore a NaN operand like `f32::min`/`max`).
+#[inline(always)]
+fn bernstein_clear_x8(k: &[f32x8; 4], tol: f32) -> u32 {
+    let [a, b, c, d] = *k;
+    let b1 = d + c * f32x8::splat(1.0 / 3.0);
+    let b2 = d + c * f32x8::splat(2.0 / 3.0) + b * f32x8::splat(1.0 / 3.0);
+    let b3 = a + b + c + d;
+    let margin = f32x8::splat(tol)
+        + f32x8::splat(16.0 * f32::EPSILON) * (a.abs() + b.abs() + c.abs() + d.abs());
+    let lo = d.min(b1).min(b2.min(b3));
+    let hi = d.max(b1).max(b2.max(b3));
+    (lo.simd_gt(margin) | hi.simd_lt(-margin)).to_bitmask()
 }
 
 /// Schwarze's analytic cubic solver (Graphics Gems I; Cardano with the trigonometric form

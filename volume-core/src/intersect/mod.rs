@@ -30,6 +30,7 @@
 pub mod accuracy;
 pub mod frame;
 pub mod methods;
+pub mod packet;
 
 use std::str::FromStr;
 
@@ -38,6 +39,7 @@ use glam::Vec3;
 use crate::voxel::{Voxel, VoxelType};
 
 pub use frame::{LocalRay, TraversalFrame};
+pub use packet::{HitsX8, RaysX8, RootsX8, SegmentsX8, intersect_prepared_cell_x8};
 
 /// The run-time choice of cell intersector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -226,6 +228,19 @@ impl CellSegment {
 /// `f(s) = trilinear(corners)(segment(s)) − iso`.
 pub trait CellIntersector: Copy + Send + Sync + 'static {
     fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64>;
+
+    /// [`CellIntersector::first_root`] for the lanes in `mask` of a packet's segments through
+    /// one cell (packet leaves), bit-identical per lane. The default runs it lane by lane.
+    #[inline(always)]
+    fn first_roots_x8<T: Voxel>(
+        &self,
+        corners: &[T; 8],
+        iso: f32,
+        seg: &SegmentsX8<'_>,
+        mask: u32,
+    ) -> RootsX8 {
+        packet::first_roots_by_lane(self, corners, iso, seg, mask)
+    }
 }
 
 /// The most isovalues one traversal handles without allocating (more are still correct, the

@@ -34,7 +34,7 @@
 
 mod packet;
 
-pub use packet::{PACKET_WIDTH, packet_compatible};
+pub use packet::{PACKET_WIDTH, PacketStack, packet_compatible};
 
 use std::time::{Duration, Instant};
 

@@ -5,29 +5,73 @@
 //!
 //! A packet descends to one child when every active ray does, else to both; each ray keeps
 //! its own `[t_near, t_far]` lane, computed with exactly the single-ray formulas, and leaves
-//! run the same scalar cell test per active ray (the cell's corners, range and box loaded
-//! once per packet), so packet results equal single-ray results (tested). Packets need every ray to share the sign of each direction component and have
+//! run the cell test of all active rays at once (the cell's corners, range and box loaded
+//! once per packet; slab, segment, cubic and early out in `f32x8` lanes with the scalar
+//! operations, [`crate::intersect::packet`]), so packet results equal single-ray results
+//! (tested). Packets need every ray to share the sign of each direction component and have
 //! no zero component; [`crate::grid_scene::GridScene`] traces other groups one by one.
 
 use wide::f32x8;
 
 use super::{INLINE_STACK, KdTree, addr};
 use crate::intersect::{
-    CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, TraversalFrame,
-    intersect_prepared_cell,
+    CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, RaysX8, TraversalFrame,
+    intersect_prepared_cell, intersect_prepared_cell_x8,
 };
 use crate::render::Stats;
 use crate::voxel::Voxel;
 
+/// `f32x8` halves per packet: 2 gives 16-ray packets (4×4 pixels), which halve the scalar
+/// per-node work (addresses, min/max loads and culling, branches) per ray.
+const HALVES: usize = 2;
+
 /// Rays per packet.
-pub const PACKET_WIDTH: usize = 8;
+pub const PACKET_WIDTH: usize = 8 * HALVES;
+
+/// Active rays from which a leaf tests them all at once in `f32x8` lanes; fewer take the
+/// scalar test per ray (same results; SIMD lanes cost about as much as a few scalar tests).
+const LEAF_LANES_MIN: u32 = 3;
+
+/// Lanes of a packet: `HALVES` vectors of 8.
+type Lanes = [f32x8; HALVES];
+
+/// Lanes `f(0..n)`, then `pad`.
+#[inline(always)]
+fn lanes(n: usize, pad: f32, f: impl Fn(usize) -> f32) -> Lanes {
+    std::array::from_fn(|h| {
+        f32x8::new(std::array::from_fn(|i| {
+            let k = 8 * h + i;
+            if k < n { f(k) } else { pad }
+        }))
+    })
+}
+
+#[inline(always)]
+fn splat(x: f32) -> Lanes {
+    [f32x8::splat(x); HALVES]
+}
+
+/// Bit `8h + i` set where lane `i` of half `h` satisfies `f`.
+#[inline(always)]
+fn bits(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> u32 {
+    let mut m = 0;
+    for (h, (&x, &y)) in a.iter().zip(b).enumerate() {
+        m |= f(x, y).to_bitmask() << (8 * h);
+    }
+    m
+}
+
+#[inline(always)]
+fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
+    std::array::from_fn(|h| f(a[h], b[h]))
+}
 
 #[derive(Clone, Copy)]
 struct PacketEntry {
     node: [u32; 3],
     level: u32,
-    t_near: f32x8,
-    t_far: f32x8,
+    t_near: Lanes,
+    t_far: Lanes,
 }
 
 impl Default for PacketEntry {
@@ -35,8 +79,23 @@ impl Default for PacketEntry {
         Self {
             node: [0; 3],
             level: 0,
-            t_near: f32x8::splat(0.0),
-            t_far: f32x8::splat(0.0),
+            t_near: splat(0.0),
+            t_far: splat(0.0),
+        }
+    }
+}
+
+/// The packet traversal stack, reusable across packets (zeroing 64 entries per packet would
+/// cost more than a short traversal).
+#[derive(Clone)]
+pub struct PacketStack {
+    entries: [PacketEntry; INLINE_STACK],
+}
+
+impl Default for PacketStack {
+    fn default() -> Self {
+        Self {
+            entries: [PacketEntry::default(); INLINE_STACK],
         }
     }
 }
@@ -66,6 +125,37 @@ impl<T: Voxel> KdTree<T> {
         stats: &mut S,
         out: &mut [Option<CellHit>],
     ) {
+        let mut stack = PacketStack::default();
+        self.first_hit_packet_in(
+            &mut stack,
+            frame,
+            voxels,
+            rays,
+            t0,
+            t1,
+            isos,
+            intersector,
+            stats,
+            out,
+        );
+    }
+
+    /// [`KdTree::first_hit_packet`] with a caller's stack (reused across packets).
+    #[inline]
+    pub fn first_hit_packet_in<C: CellIntersector, S: Stats>(
+        &self,
+        stack: &mut PacketStack,
+        frame: &TraversalFrame,
+        voxels: &[T],
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+        out: &mut [Option<CellHit>],
+    ) {
+        let stack = &mut stack.entries;
         let n = rays.len().min(PACKET_WIDTH);
         for o in &mut out[..n] {
             *o = None;
@@ -74,18 +164,6 @@ impl<T: Voxel> KdTree<T> {
             return;
         }
         debug_assert!(packet_compatible(&rays[..n]));
-        let lanes = |f: &dyn Fn(usize) -> f32, pad: f32| {
-            f32x8::new(std::array::from_fn(|i| if i < n { f(i) } else { pad }))
-        };
-        let org = [0, 1, 2].map(|a| lanes(&|i| rays[i].origin[a], 0.0));
-        let inv = [0, 1, 2].map(|a| lanes(&|i| rays[i].inv_dir[a], 1.0));
-        let dir_pos = [0, 1, 2].map(|a| rays[0].dir[a] > 0.0);
-        // Padding lanes are empty: t_near = +inf > t_far = −inf.
-        let mut tn = lanes(&|i| t0[i], f32::INFINITY);
-        let mut tf = lanes(&|i| t1[i], f32::NEG_INFINITY);
-        let mut best = [f32::INFINITY; PACKET_WIDTH];
-        let mut best_v = f32x8::splat(f32::INFINITY);
-        let mut stack = [PacketEntry::default(); INLINE_STACK];
         if self.depth >= INLINE_STACK {
             // Absurdly deep trees (> 2^64 cells): trace one by one.
             for i in 0..n {
@@ -102,16 +180,34 @@ impl<T: Voxel> KdTree<T> {
             }
             return;
         }
-        let mut sp = 0usize;
-        let mut node = [0u32; 3];
-        let mut level = 0usize;
         // Children are culled before they are entered or pushed; only the root here.
         if self.stored > 0 && !isos.any_in(self.ranges[0][0], self.ranges[0][1]) {
             return;
         }
+        let org = [0, 1, 2].map(|a| lanes(n, 0.0, |i| rays[i].origin[a]));
+        let inv = [0, 1, 2].map(|a| lanes(n, 1.0, |i| rays[i].inv_dir[a]));
+        let dir = [0, 1, 2].map(|a| lanes(n, 1.0, |i| rays[i].dir[a]));
+        let dir_pos = [0, 1, 2].map(|a| rays[0].dir[a] > 0.0);
+        // Padding lanes are empty: t_near = +inf > t_far = −inf.
+        let mut tn = lanes(n, f32::INFINITY, |i| t0[i]);
+        let mut tf = lanes(n, f32::NEG_INFINITY, |i| t1[i]);
+        // The halves for the leaves (SIMD cell tests, `intersect::packet`).
+        let leaf_rays: [RaysX8; HALVES] = std::array::from_fn(|h| RaysX8 {
+            origin: org.map(|v| v[h]),
+            dir: dir.map(|v| v[h]),
+            inv_dir: inv.map(|v| v[h]),
+            dir_pos,
+            t_lo: tn[h],
+            t_hi: tf[h],
+        });
+        let mut best = [f32::INFINITY; PACKET_WIDTH];
+        let mut best_v = splat(f32::INFINITY);
+        let mut sp = 0usize;
+        let mut node = [0u32; 3];
+        let mut level = 0usize;
         'outer: loop {
             loop {
-                let active = tn.simd_le(tf).to_bitmask();
+                let active = bits(&tn, &tf, f32x8::simd_le);
                 if active == 0 {
                     break;
                 }
@@ -123,25 +219,55 @@ impl<T: Voxel> KdTree<T> {
                     let Some(pc) = PreparedCell::load(frame, voxels, self.dims, cell, isos) else {
                         break;
                     };
-                    let mut bits = active;
-                    while bits != 0 {
-                        let i = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        if let Some(h) = intersect_prepared_cell(
-                            &pc,
-                            &rays[i],
-                            t0[i],
-                            t1[i],
-                            isos,
-                            intersector,
-                            stats,
-                        ) && h.t < best[i]
-                        {
-                            best[i] = h.t;
-                            out[i] = Some(h);
+                    for (h, half_rays) in leaf_rays.iter().enumerate() {
+                        let half = (active >> (8 * h)) & 0xff;
+                        if half.count_ones() >= LEAF_LANES_MIN {
+                            let hits = intersect_prepared_cell_x8(
+                                &pc,
+                                half_rays,
+                                half,
+                                isos,
+                                intersector,
+                                stats,
+                            );
+                            let mut b = hits.mask;
+                            while b != 0 {
+                                let i = b.trailing_zeros() as usize;
+                                b &= b - 1;
+                                let k = 8 * h + i;
+                                if hits.t[i] < best[k] {
+                                    best[k] = hits.t[i];
+                                    out[k] = Some(CellHit {
+                                        t: hits.t[i],
+                                        surface: hits.surface[i],
+                                        cell,
+                                    });
+                                }
+                            }
+                        } else {
+                            let mut b = half;
+                            while b != 0 {
+                                let k = 8 * h + b.trailing_zeros() as usize;
+                                b &= b - 1;
+                                if let Some(hit) = intersect_prepared_cell(
+                                    &pc,
+                                    &rays[k],
+                                    t0[k],
+                                    t1[k],
+                                    isos,
+                                    intersector,
+                                    stats,
+                                ) && hit.t < best[k]
+                                {
+                                    best[k] = hit.t;
+                                    out[k] = Some(hit);
+                                }
+                            }
                         }
                     }
-                    best_v = f32x8::new(best);
+                    best_v = std::array::from_fn(|h| {
+                        f32x8::new(std::array::from_fn(|i| best[8 * h + i]))
+                    });
                     break;
                 }
                 let lv = &self.levels[level];
@@ -167,14 +293,14 @@ impl<T: Voxel> KdTree<T> {
                 } else {
                     (true, right_real)
                 };
-                let ts = (f32x8::splat(split) - org[a]) * inv[a];
+                let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(split) - o) * v);
                 let (near, far, near_real, far_real) = if dir_pos[a] {
                     (left, right, left_live, right_live)
                 } else {
                     (right, left, right_live, left_live)
                 };
-                let beyond = ts.simd_gt(tf).to_bitmask();
-                let before = ts.simd_lt(tn).to_bitmask();
+                let beyond = bits(&ts, &tf, f32x8::simd_gt);
+                let before = bits(&ts, &tn, f32x8::simd_lt);
                 if beyond & active == active {
                     if !near_real {
                         break;
@@ -190,7 +316,7 @@ impl<T: Voxel> KdTree<T> {
                         stack[sp] = PacketEntry {
                             node: far,
                             level: level as u32,
-                            t_near: tn.max(ts),
+                            t_near: map2(&tn, &ts, f32x8::max),
                             t_far: tf,
                         };
                         sp += 1;
@@ -199,7 +325,7 @@ impl<T: Voxel> KdTree<T> {
                         break;
                     }
                     node = near;
-                    tf = tf.min(ts);
+                    tf = map2(&tf, &ts, f32x8::min);
                 }
             }
             loop {
@@ -208,8 +334,8 @@ impl<T: Voxel> KdTree<T> {
                 }
                 sp -= 1;
                 let e = stack[sp];
-                let e_tf = e.t_far.min(best_v);
-                if e.t_near.simd_le(e_tf).to_bitmask() != 0 {
+                let e_tf = map2(&e.t_far, &best_v, f32x8::min);
+                if bits(&e.t_near, &e_tf, f32x8::simd_le) != 0 {
                     node = e.node;
                     level = e.level as usize;
                     tn = e.t_near;

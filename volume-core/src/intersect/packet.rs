@@ -1,0 +1,475 @@
+//! Packet leaves: the rays of a kd-tree packet (thesis seed 004 §7.2.1) tested against one
+//! cell together, 8 lanes at a time (`wide::f32x8`, no `unsafe`).
+//!
+//! Every lane runs exactly the floating-point operations of the scalar path
+//! ([`super::frame::slab`], [`super::CellSegment::local_f32`], the intersector), in the same
+//! order and with the same NaN-ignoring `min`/`max`, so results are bit-identical to
+//! [`super::intersect_prepared_cell`] per ray (tested below and by the packet == single-ray
+//! proptests). Packets share each direction component's sign and have no zero component
+//! ([`crate::kdtree::packet_compatible`]), so the slab's near/far choice is one branch per
+//! axis for all lanes.
+
+use glam::Vec3;
+use wide::f32x8;
+
+use super::{CellIntersector, CellSegment, IsoSet, PreparedCell};
+use crate::render::Stats;
+use crate::voxel::Voxel;
+
+/// Lanes per packet.
+pub const LANES: usize = 8;
+
+/// The rays of a packet in traversal units, one lane per ray.
+#[derive(Debug, Clone, Copy)]
+pub struct RaysX8 {
+    pub origin: [f32x8; 3],
+    pub dir: [f32x8; 3],
+    pub inv_dir: [f32x8; 3],
+    /// `dir[a] > 0` for every lane (packets share direction signs).
+    pub dir_pos: [bool; 3],
+    /// Each ray's interval clipped to the volume (`t_lo`, `t_hi` of [`super::intersect_cell`]).
+    pub t_lo: f32x8,
+    pub t_hi: f32x8,
+}
+
+/// The segments of a packet's rays inside one cell (`t_near`, `t_far` per lane).
+#[derive(Debug, Clone, Copy)]
+pub struct SegmentsX8<'a> {
+    pub rays: &'a RaysX8,
+    pub lo: Vec3,
+    pub hi: Vec3,
+    pub t_near: f32x8,
+    pub t_far: f32x8,
+}
+
+impl SegmentsX8<'_> {
+    /// Lane `i` as the scalar [`CellSegment`].
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> CellSegment {
+        let r = self.rays;
+        let v =
+            |x: &[f32x8; 3]| Vec3::new(x[0].as_array()[i], x[1].as_array()[i], x[2].as_array()[i]);
+        CellSegment {
+            origin: v(&r.origin),
+            dir: v(&r.dir),
+            inv_dir: v(&r.inv_dir),
+            lo: self.lo,
+            hi: self.hi,
+            t_near: self.t_near.as_array()[i],
+            t_far: self.t_far.as_array()[i],
+        }
+    }
+
+    /// [`CellSegment::local_f32`] for every lane: cell-local entry points and displacements.
+    #[inline(always)]
+    pub fn local_f32(&self) -> ([f32x8; 3], [f32x8; 3]) {
+        let r = self.rays;
+        let inv_w = (self.hi - self.lo).recip();
+        let mut p0 = [f32x8::ZERO; 3];
+        let mut dp = [f32x8::ZERO; 3];
+        for a in 0..3 {
+            let lo = f32x8::splat(self.lo[a]);
+            let hi = f32x8::splat(self.hi[a]);
+            let w = f32x8::splat(inv_w[a]);
+            let rel = r.origin[a] - lo;
+            let q0 = (rel + r.dir[a] * self.t_near) * w;
+            let q1 = (rel + r.dir[a] * self.t_far) * w;
+            let t_lo = (lo - r.origin[a]) * r.inv_dir[a];
+            let t_hi = (hi - r.origin[a]) * r.inv_dir[a];
+            let (t_in, t_out, face_in, face_out) = if r.dir_pos[a] {
+                (t_lo, t_hi, 0.0, 1.0)
+            } else {
+                (t_hi, t_lo, 1.0, 0.0)
+            };
+            let q0 = t_in.simd_eq(self.t_near).select(f32x8::splat(face_in), q0);
+            let q1 = t_out.simd_eq(self.t_far).select(f32x8::splat(face_out), q1);
+            p0[a] = q0;
+            dp[a] = q1 - q0;
+        }
+        (p0, dp)
+    }
+}
+
+/// First roots `s ∈ [0, 1]` for the lanes in a bit mask (bit `i` = lane `i`).
+#[derive(Debug, Clone, Copy)]
+pub struct RootsX8 {
+    pub s: [f64; LANES],
+    pub mask: u32,
+}
+
+/// Each lane's nearest hit in one cell: ray parameter and surface for the lanes in `mask`.
+#[derive(Debug, Clone, Copy)]
+pub struct HitsX8 {
+    pub t: [f32; LANES],
+    pub surface: [u32; LANES],
+    pub mask: u32,
+}
+
+/// [`super::intersect_prepared_cell`] for the lanes of `active` (no leaf is counted here).
+#[inline(always)]
+pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
+    pc: &PreparedCell<T>,
+    rays: &RaysX8,
+    active: u32,
+    isos: &IsoSet<T>,
+    intersector: C,
+    stats: &mut S,
+) -> HitsX8 {
+    let mut hits = HitsX8 {
+        t: [0.0; LANES],
+        surface: [0; LANES],
+        mask: 0,
+    };
+    let (lo, hi) = (pc.lo, pc.hi);
+    // frame::slab, lane-wise (no zero direction components in a packet).
+    let (mut t0, mut t1) = (rays.t_lo, rays.t_hi);
+    for a in 0..3 {
+        let ta = (f32x8::splat(lo[a]) - rays.origin[a]) * rays.inv_dir[a];
+        let tb = (f32x8::splat(hi[a]) - rays.origin[a]) * rays.inv_dir[a];
+        let (n, f) = if rays.dir_pos[a] { (ta, tb) } else { (tb, ta) };
+        t0 = t0.max(n);
+        t1 = t1.min(f);
+    }
+    let mask = active & t0.simd_le(t1).to_bitmask();
+    if mask == 0 || !(hi.cmpgt(lo).all()) {
+        return hits;
+    }
+    let seg = SegmentsX8 {
+        rays,
+        lo,
+        hi,
+        t_near: t0,
+        t_far: t1,
+    };
+    let (tn, tf) = (t0.to_array(), t1.to_array());
+    isos.for_each_in(pc.min, pc.max, |iso, surface| {
+        for _ in 0..mask.count_ones() {
+            stats.intersection();
+        }
+        let roots = intersector.first_roots_x8(&pc.corners, iso, &seg, mask);
+        let mut bits = roots.mask;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            // CellSegment::t_at, then the clamp of intersect_prepared_cell.
+            let (n, f) = (f64::from(tn[i]), f64::from(tf[i]));
+            let t = ((n + roots.s[i] * (f - n)) as f32).clamp(tn[i], tf[i]);
+            if hits.mask & (1 << i) == 0 || t < hits.t[i] {
+                hits.t[i] = t;
+                hits.surface[i] = surface;
+                hits.mask |= 1 << i;
+            }
+        }
+    });
+    hits
+}
+
+/// The default [`CellIntersector::first_roots_x8`]: the scalar method per lane.
+#[inline(always)]
+pub fn first_roots_by_lane<T: Voxel, C: CellIntersector>(
+    c: &C,
+    corners: &[T; 8],
+    iso: f32,
+    seg: &SegmentsX8<'_>,
+    mask: u32,
+) -> RootsX8 {
+    let mut r = RootsX8 {
+        s: [0.0; LANES],
+        mask: 0,
+    };
+    let mut bits = mask;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        if let Some(s) = c.first_root(corners, iso, &seg.lane(i)) {
+            r.s[i] = s;
+            r.mask |= 1 << i;
+        }
+    }
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::intersect::{Intersector, LocalRay, intersect_prepared_cell};
+    use crate::render::CountStats;
+
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn next(&mut self) -> u64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            self.0 >> 33
+        }
+
+        fn range(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * (self.next() as f32 / (1u64 << 31) as f32)
+        }
+    }
+
+    /// Outcome counts of one comparison run (to check that the cases were exercised).
+    #[derive(Default)]
+    struct Seen {
+        lanes: usize,
+        hits: usize,
+        tests: usize,
+    }
+
+    /// One random cell and packet: the lane-wise test equals the scalar test per lane
+    /// (bit-identical `t`, same surface, same intersection count).
+    fn compare_once<T: Voxel, C: CellIntersector>(
+        rng: &mut Lcg,
+        c: C,
+        corner: impl Fn(&mut Lcg) -> T,
+        isovalues: &[f32],
+        seen: &mut Seen,
+    ) {
+        let lo = Vec3::new(
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+        );
+        let w = Vec3::new(
+            rng.range(0.2, 2.0),
+            rng.range(0.2, 2.0),
+            rng.range(0.2, 2.0),
+        );
+        let hi = if rng.next().is_multiple_of(50) {
+            lo
+        } else {
+            lo + w
+        };
+        let corners: [T; 8] = std::array::from_fn(|_| corner(rng));
+        let isos = IsoSet::new(isovalues);
+        let Some((min, max)) = super::super::corner_range(&corners) else {
+            return;
+        };
+        let pc = PreparedCell {
+            corners,
+            min,
+            max,
+            lo,
+            hi,
+            cell: [1, 2, 3],
+        };
+        // A pinhole-like packet: one eye (sometimes per-lane origins), directions with one
+        // sign per axis and no zero component, aimed near the cell.
+        let eye = lo
+            + w * Vec3::new(
+                rng.range(-3.0, 4.0),
+                rng.range(-3.0, 4.0),
+                rng.range(-3.0, 4.0),
+            );
+        let sign = Vec3::new(
+            if rng.next().is_multiple_of(2) {
+                1.0
+            } else {
+                -1.0
+            },
+            if rng.next().is_multiple_of(2) {
+                1.0
+            } else {
+                -1.0
+            },
+            if rng.next().is_multiple_of(2) {
+                1.0
+            } else {
+                -1.0
+            },
+        );
+        let shared_origin = !rng.next().is_multiple_of(3);
+        let rays: [LocalRay; LANES] = std::array::from_fn(|_| {
+            let o = if shared_origin {
+                eye
+            } else {
+                eye + Vec3::new(
+                    rng.range(-0.3, 0.3),
+                    rng.range(-0.3, 0.3),
+                    rng.range(-0.3, 0.3),
+                )
+            };
+            let target = (lo + hi) * 0.5
+                + w * Vec3::new(
+                    rng.range(-0.8, 0.8),
+                    rng.range(-0.8, 0.8),
+                    rng.range(-0.8, 0.8),
+                );
+            let d = (target - o).abs().max(Vec3::splat(1e-3)) * sign;
+            LocalRay::new(o, d * rng.range(0.5, 3.0))
+        });
+        let t_lo: [f32; LANES] = std::array::from_fn(|_| {
+            if rng.next().is_multiple_of(4) {
+                rng.range(0.0, 2.0)
+            } else {
+                0.0
+            }
+        });
+        let t_hi: [f32; LANES] = std::array::from_fn(|_| {
+            if rng.next().is_multiple_of(4) {
+                rng.range(0.0, 3.0)
+            } else {
+                f32::INFINITY
+            }
+        });
+        let active = (rng.next() as u32) & 0xff | 1;
+        let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
+            [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
+        };
+        let packet = RaysX8 {
+            origin: lanes(&|r| r.origin),
+            dir: lanes(&|r| r.dir),
+            inv_dir: lanes(&|r| r.inv_dir),
+            dir_pos: [0, 1, 2].map(|a| sign[a] > 0.0),
+            t_lo: f32x8::new(t_lo),
+            t_hi: f32x8::new(t_hi),
+        };
+        let mut st_x8 = CountStats::default();
+        let got = intersect_prepared_cell_x8(&pc, &packet, active, &isos, c, &mut st_x8);
+        let mut st_1 = CountStats::default();
+        for i in 0..LANES {
+            let want = if active & (1 << i) != 0 {
+                seen.lanes += 1;
+                intersect_prepared_cell(&pc, &rays[i], t_lo[i], t_hi[i], &isos, c, &mut st_1)
+            } else {
+                None
+            };
+            let got_i = (got.mask & (1 << i) != 0).then(|| (got.t[i].to_bits(), got.surface[i]));
+            assert_eq!(
+                got_i,
+                want.map(|h| (h.t.to_bits(), h.surface)),
+                "lane {i}: {:?} in {lo:?}..{hi:?}, corners {corners:?}, t {}..{}",
+                rays[i],
+                t_lo[i],
+                t_hi[i]
+            );
+            seen.hits += usize::from(want.is_some());
+        }
+        let (n_x8, n_1) = (
+            st_x8.counts().intersection_tests,
+            st_1.counts().intersection_tests,
+        );
+        assert_eq!(n_x8, n_1, "intersection tests counted");
+        seen.tests += n_1 as usize;
+    }
+
+    #[test]
+    fn lanes_equal_scalar_cell_tests_for_every_intersector() {
+        for which in Intersector::ALL {
+            let mut rng = Lcg(7 + which.name().len() as u64);
+            let mut seen = Seen::default();
+            for n in 0..3000 {
+                let isos: &[f32] = match n % 3 {
+                    0 => &[0.0],
+                    1 => &[0.3, -0.2],
+                    _ => &[0.1, 0.1, 0.7],
+                };
+                crate::dispatch_intersector!(which, c => compare_once(
+                    &mut rng,
+                    c,
+                    |r: &mut Lcg| r.range(-1.0, 1.0),
+                    isos,
+                    &mut seen,
+                ));
+            }
+            // Integer voxels at integer isovalues: corners equal to the isovalue, constant
+            // cells (the whole segment on the surface).
+            for n in 0..2000 {
+                let spread = if n % 7 == 0 { 0 } else { 3 };
+                crate::dispatch_intersector!(which, c => compare_once(
+                    &mut rng,
+                    c,
+                    |r: &mut Lcg| 100 + (r.next() % (2 * spread + 1)) as i16 - spread as i16,
+                    &[100.0, 101.5],
+                    &mut seen,
+                ));
+            }
+            assert!(seen.lanes > 10_000, "{which}: {} lanes", seen.lanes);
+            assert!(seen.hits > 500, "{which}: {} hits", seen.hits);
+            assert!(
+                seen.tests > 2 * seen.hits,
+                "{which}: {} tests, {} hits",
+                seen.tests,
+                seen.hits
+            );
+        }
+    }
+
+    #[test]
+    fn lane_segments_equal_scalar_segments() {
+        let mut rng = Lcg(99);
+        for _ in 0..2000 {
+            let lo = Vec3::new(
+                rng.range(-9.0, 9.0),
+                rng.range(-9.0, 9.0),
+                rng.range(-9.0, 9.0),
+            );
+            let hi = lo
+                + Vec3::new(
+                    rng.range(0.1, 3.0),
+                    rng.range(0.1, 3.0),
+                    rng.range(0.1, 3.0),
+                );
+            let sign = [0, 1, 2].map(|_| {
+                if rng.next().is_multiple_of(2) {
+                    1.0
+                } else {
+                    -1.0
+                }
+            });
+            let rays: [LocalRay; LANES] = std::array::from_fn(|_| {
+                let o = Vec3::new(
+                    rng.range(-20.0, 20.0),
+                    rng.range(-20.0, 20.0),
+                    rng.range(-20.0, 20.0),
+                );
+                let d = Vec3::from(sign.map(|s| s * rng.range(0.01, 2.0)));
+                LocalRay::new(o, d)
+            });
+            let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
+                [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
+            };
+            let packet = RaysX8 {
+                origin: lanes(&|r| r.origin),
+                dir: lanes(&|r| r.dir),
+                inv_dir: lanes(&|r| r.inv_dir),
+                dir_pos: sign.map(|s| s > 0.0),
+                t_lo: f32x8::ZERO,
+                t_hi: f32x8::splat(f32::INFINITY),
+            };
+            // Segment ends from the slab (so the face snapping is exercised) or arbitrary.
+            let ends: [(f32, f32); LANES] = std::array::from_fn(|i| {
+                crate::intersect::frame::slab(&rays[i], lo, hi, -50.0, 50.0)
+                    .unwrap_or((rng.range(-5.0, 0.0), rng.range(0.0, 5.0)))
+            });
+            let seg = SegmentsX8 {
+                rays: &packet,
+                lo,
+                hi,
+                t_near: f32x8::new(ends.map(|e| e.0)),
+                t_far: f32x8::new(ends.map(|e| e.1)),
+            };
+            let (p0, dp) = seg.local_f32();
+            for (i, ray) in rays.iter().enumerate() {
+                let s = seg.lane(i);
+                assert_eq!(s.origin, ray.origin);
+                let (q0, dq) = s.local_f32();
+                for a in 0..3 {
+                    assert_eq!(
+                        p0[a].as_array()[i].to_bits(),
+                        q0[a].to_bits(),
+                        "p0 lane {i} axis {a}"
+                    );
+                    assert_eq!(
+                        dp[a].as_array()[i].to_bits(),
+                        dq[a].to_bits(),
+                        "dp lane {i} axis {a}"
+                    );
+                }
+            }
+        }
+    }
+}
