@@ -26,7 +26,9 @@ use glam::{DVec3, Vec3};
 use crate::dda::DdaScene;
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible};
+use crate::kdtree::{
+    KdTree, KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack,
+};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
@@ -520,12 +522,16 @@ impl<T: Voxel> IsoScene for GridScene<T> {
         stats: &mut S,
     ) {
         crate::dispatch_intersector!(self.intersector, c => {
-            let isos = IsoSet::new(isovalues);
-            let mut stack = PacketStack::default();
-            for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
-                let base = start * PACKET_WIDTH;
-                self.packet_with(&mut stack, chunk, &t_min[base..], &t_max[base..], &isos, c, &mut out[base..], stats);
+            if rays.is_empty() {
+                return;
             }
+            let isos = IsoSet::new(isovalues);
+            with_packet_stack(|stack| {
+                for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                    let base = start * PACKET_WIDTH;
+                    self.packet_with(stack, chunk, &t_min[base..], &t_max[base..], &isos, c, &mut out[base..], stats);
+                }
+            });
         });
     }
 }

@@ -34,7 +34,7 @@
 
 mod packet;
 
-pub use packet::{PACKET_WIDTH, PacketStack, packet_compatible};
+pub use packet::{PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack};
 
 use std::time::{Duration, Instant};
 

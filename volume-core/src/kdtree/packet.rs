@@ -35,15 +35,13 @@ const LEAF_LANES_MIN: u32 = 3;
 /// Lanes of a packet: `HALVES` vectors of 8.
 type Lanes = [f32x8; HALVES];
 
-/// Lanes `f(0..n)`, then `pad`.
 #[inline(always)]
-fn lanes(n: usize, pad: f32, f: impl Fn(usize) -> f32) -> Lanes {
-    std::array::from_fn(|h| {
-        f32x8::new(std::array::from_fn(|i| {
-            let k = 8 * h + i;
-            if k < n { f(k) } else { pad }
-        }))
-    })
+fn lanes(x: &[f32; PACKET_WIDTH]) -> Lanes {
+    let mut v = [f32x8::ZERO; HALVES];
+    for (h, c) in x.chunks_exact(8).enumerate() {
+        v[h] = f32x8::new(c.try_into().expect("8 lanes"));
+    }
+    v
 }
 
 #[inline(always)]
@@ -85,8 +83,8 @@ impl Default for PacketEntry {
     }
 }
 
-/// The packet traversal stack, reusable across packets (zeroing 64 entries per packet would
-/// cost more than a short traversal).
+/// The packet traversal stack, reusable across packets (zeroing 64 entries, 10 KB, per packet
+/// would cost more than a short traversal). [`with_packet_stack`] lends each thread one.
 #[derive(Clone)]
 pub struct PacketStack {
     entries: [PacketEntry; INLINE_STACK],
@@ -98,6 +96,16 @@ impl Default for PacketStack {
             entries: [PacketEntry::default(); INLINE_STACK],
         }
     }
+}
+
+thread_local! {
+    static PACKET_STACK: std::cell::RefCell<PacketStack> =
+        std::cell::RefCell::new(PacketStack::default());
+}
+
+/// Runs `f` with this thread's packet stack (made once per thread, not per call).
+pub fn with_packet_stack<R>(f: impl FnOnce(&mut PacketStack) -> R) -> R {
+    PACKET_STACK.with_borrow_mut(f)
 }
 
 /// True if the rays can travel as one packet: same direction signs, no zero component.
@@ -184,13 +192,30 @@ impl<T: Voxel> KdTree<T> {
         if self.stored > 0 && !isos.any_in(self.ranges[0][0], self.ranges[0][1]) {
             return;
         }
-        let org = [0, 1, 2].map(|a| lanes(n, 0.0, |i| rays[i].origin[a]));
-        let inv = [0, 1, 2].map(|a| lanes(n, 1.0, |i| rays[i].inv_dir[a]));
-        let dir = [0, 1, 2].map(|a| lanes(n, 1.0, |i| rays[i].dir[a]));
+        // Structure of arrays with padding lanes (origin 0, direction 1), filled by plain
+        // loops (no closure call per lane).
+        let mut soa = [[0.0f32; PACKET_WIDTH]; 9];
+        for lane_values in &mut soa[3..] {
+            *lane_values = [1.0; PACKET_WIDTH];
+        }
+        for (i, r) in rays[..n].iter().enumerate() {
+            for a in 0..3 {
+                soa[a][i] = r.origin[a];
+                soa[3 + a][i] = r.inv_dir[a];
+                soa[6 + a][i] = r.dir[a];
+            }
+        }
+        let org = [0, 1, 2].map(|a| lanes(&soa[a]));
+        let inv = [0, 1, 2].map(|a| lanes(&soa[3 + a]));
+        let dir = [0, 1, 2].map(|a| lanes(&soa[6 + a]));
         let dir_pos = [0, 1, 2].map(|a| rays[0].dir[a] > 0.0);
         // Padding lanes are empty: t_near = +inf > t_far = −inf.
-        let mut tn = lanes(n, f32::INFINITY, |i| t0[i]);
-        let mut tf = lanes(n, f32::NEG_INFINITY, |i| t1[i]);
+        let mut t_near = [f32::INFINITY; PACKET_WIDTH];
+        let mut t_far = [f32::NEG_INFINITY; PACKET_WIDTH];
+        t_near[..n].copy_from_slice(&t0[..n]);
+        t_far[..n].copy_from_slice(&t1[..n]);
+        let mut tn = lanes(&t_near);
+        let mut tf = lanes(&t_far);
         // The halves for the leaves (SIMD cell tests, `intersect::packet`).
         let leaf_rays: [RaysX8; HALVES] = std::array::from_fn(|h| RaysX8 {
             origin: org.map(|v| v[h]),
