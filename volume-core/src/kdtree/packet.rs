@@ -1,7 +1,8 @@
-//! Packet traversal: 8 coherent rays walk the kd-tree together (thesis seed 004 §7.2.1,
-//! after Wald's coherent packets). Node min/max are fetched and culled once per packet, and
-//! the split distances of all rays are computed in one `f32x8` (the `wide` crate: AVX when
-//! enabled at compile time, SSE pairs otherwise, no `unsafe`).
+//! Packet traversal: 16 coherent rays (two `f32x8` halves) walk the kd-tree together
+//! (thesis seed 004 §7.2.1, after Wald's coherent packets; the thesis used 4). Node min/max
+//! are fetched and culled once per packet, and the split distances of all rays are computed
+//! lane-wise (the `wide` crate: AVX when enabled at compile time, SSE pairs otherwise, no
+//! `unsafe`).
 //!
 //! A packet descends to one child when every active ray does, else to both; each ray keeps
 //! its own `[t_near, t_far]` lane, computed with exactly the single-ray formulas, and leaves
@@ -9,7 +10,8 @@
 //! once per packet; slab, segment, cubic and early out in `f32x8` lanes with the scalar
 //! operations, [`crate::intersect::packet`]), so packet results equal single-ray results
 //! (tested). Packets need every ray to share the sign of each direction component and have
-//! no zero component; [`crate::grid_scene::GridScene`] traces other groups one by one.
+//! no zero component; [`crate::grid_scene::GridScene`] splits other groups into packets of 8
+//! or traces them one by one.
 
 use wide::f32x8;
 
