@@ -83,6 +83,9 @@ struct Level {
     /// The next level's `stride` and `range_offset` (read by the descent step).
     child_stride: [usize; 3],
     child_offset: usize,
+    /// Address distance between the child pairs of a right and a left node of this level
+    /// (siblings: `right = left + parent unit`), for the prefetch.
+    grand_delta: usize,
 }
 
 /// The implicit min/max kd-tree (see the module docs).
@@ -168,6 +171,7 @@ impl<T: Voxel> KdTree<T> {
                     order,
                     child_stride: [0; 3],
                     child_offset: 0,
+                    grand_delta: 0,
                 });
                 if extent == [1, 1, 1] {
                     break;
@@ -182,6 +186,11 @@ impl<T: Voxel> KdTree<T> {
             levels[l - 1].child_count = levels[l].count[a] as u32;
             levels[l - 1].child_stride = levels[l].stride;
             levels[l - 1].child_offset = levels[l].range_offset;
+        }
+        for l in 1..levels.len() {
+            // (left + u_parent) << u = (left << u) + (u_parent << u), and addresses are linear.
+            let a = levels[l - 1].axis;
+            levels[l].grand_delta = levels[l].child_stride[a] << levels[l].unit[a];
         }
         let depth = levels.len().saturating_sub(1);
         let stored = depth.saturating_sub(config.unstored_levels);
@@ -457,7 +466,7 @@ impl<T: Voxel> KdTree<T> {
                 let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
                 let right_real = 2 * na + 1 < lv.child_count;
                 level += 1;
-                self.prefetch_grandchildren(level, left, right);
+                self.prefetch_grandchildren(level, left);
                 // A child is live if it is real and (on a stored level) its range holds an
                 // isovalue; siblings are adjacent in the level array.
                 let (left_live, right_live) = if level < self.stored {
@@ -565,15 +574,15 @@ impl<T: Voxel> KdTree<T> {
     /// stored levels these pairs miss the cache (the hottest load of the traversal before).
     /// Only addresses are computed (no data dependency), so the loads overlap.
     #[inline(always)]
-    pub(crate) fn prefetch_grandchildren(&self, level: usize, left: [u32; 3], right: [u32; 3]) {
+    pub(crate) fn prefetch_grandchildren(&self, level: usize, left: [u32; 3]) {
         if level + 1 < self.stored {
             let lv = &self.levels[level];
             let u = lv.unit;
             let base = self.ranges.as_ptr().wrapping_add(lv.child_offset);
             let l = [left[0] << u[0], left[1] << u[1], left[2] << u[2]];
-            let r = [right[0] << u[0], right[1] << u[1], right[2] << u[2]];
-            prefetch(base.wrapping_add(addr(lv.child_stride, l)));
-            prefetch(base.wrapping_add(addr(lv.child_stride, r)));
+            let at_left = base.wrapping_add(addr(lv.child_stride, l));
+            prefetch(at_left);
+            prefetch(at_left.wrapping_add(lv.grand_delta));
         }
     }
 }

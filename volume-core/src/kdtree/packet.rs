@@ -307,7 +307,7 @@ impl<T: Voxel> KdTree<T> {
                 let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
                 let right_real = 2 * na + 1 < lv.child_count;
                 level += 1;
-                self.prefetch_grandchildren(level, left, right);
+                self.prefetch_grandchildren(level, left);
                 let (left_live, right_live) = if level < self.stored {
                     let i = lv.child_offset + addr(lv.child_stride, left);
                     let l = self.ranges[i];
