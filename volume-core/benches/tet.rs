@@ -24,7 +24,9 @@ use volume_core::math::Ray;
 use volume_core::render::{
     Camera, CountStats, IsoScene, Light, NoStats, RenderSettings, Surface, render, render_into,
 };
-use volume_core::tet::{BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetScene, split_hex};
+use volume_core::tet::{
+    BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetScene, lattice_tets, split_hex,
+};
 
 /// A wobbly ball field over an `n³`-point jittered grid split into 6 tets per cube.
 fn cube_mesh(n: usize) -> TetMesh {
@@ -48,23 +50,7 @@ fn cube_mesh(n: usize) -> TetMesh {
             }
         }
     }
-    let mut tets = Vec::with_capacity((n - 1).pow(3) * 6);
-    for k in 0..n - 1 {
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                tets.extend(split_hex([
-                    id(i, j, k),
-                    id(i + 1, j, k),
-                    id(i + 1, j + 1, k),
-                    id(i, j + 1, k),
-                    id(i, j, k + 1),
-                    id(i + 1, j, k + 1),
-                    id(i + 1, j + 1, k + 1),
-                    id(i, j + 1, k + 1),
-                ]));
-            }
-        }
-    }
+    let tets = lattice_tets(n, id);
     TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap()
 }
 

@@ -7,7 +7,7 @@ use proptest::prelude::*;
 use volume_core::math::Ray;
 use volume_core::render::{CountStats, IsoScene, NoStats};
 use volume_core::tet::{
-    BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetNormals, TetScene, split_hex,
+    BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetNormals, TetScene, lattice_tets,
 };
 
 /// Small deterministic generator (SplitMix64).
@@ -53,23 +53,7 @@ fn grid_mesh(
             }
         }
     }
-    let mut tets = Vec::new();
-    for k in 0..n - 1 {
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                tets.extend(split_hex([
-                    id(i, j, k),
-                    id(i + 1, j, k),
-                    id(i + 1, j + 1, k),
-                    id(i, j + 1, k),
-                    id(i, j, k + 1),
-                    id(i + 1, j, k + 1),
-                    id(i + 1, j + 1, k + 1),
-                    id(i, j + 1, k + 1),
-                ]));
-            }
-        }
-    }
+    let tets = lattice_tets(n, id);
     TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap()
 }
 

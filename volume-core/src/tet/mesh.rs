@@ -273,6 +273,30 @@ pub fn split_hex(v: [u32; 8]) -> [[u32; 4]; 6] {
     pull::<6>(&v, &HEX_FACES)
 }
 
+/// The tets of the `(n − 1)³` cubes of an `n³`-point lattice, each split by [`split_hex`];
+/// `id(i, j, k)` is the point index of lattice point `(i, j, k)`.
+pub fn lattice_tets(n: usize, id: impl Fn(usize, usize, usize) -> u32) -> Vec<[u32; 4]> {
+    let cells = n.saturating_sub(1);
+    let mut tets = Vec::with_capacity(cells.pow(3) * 6);
+    for k in 0..cells {
+        for j in 0..cells {
+            for i in 0..cells {
+                tets.extend(split_hex([
+                    id(i, j, k),
+                    id(i + 1, j, k),
+                    id(i + 1, j + 1, k),
+                    id(i, j + 1, k),
+                    id(i, j, k + 1),
+                    id(i + 1, j, k + 1),
+                    id(i + 1, j + 1, k + 1),
+                    id(i, j + 1, k + 1),
+                ]));
+            }
+        }
+    }
+    tets
+}
+
 /// Splits a wedge / prism (VTK vertex order) into 3 tets, crack-free with its neighbours.
 pub fn split_wedge(v: [u32; 6]) -> [[u32; 4]; 3] {
     pull::<3>(&v, &WEDGE_FACES)
@@ -347,24 +371,7 @@ mod tests {
     fn hex_split_is_crack_free() {
         let n = 5;
         let (pts, id) = lattice(n);
-        let mut tets = Vec::new();
-        for k in 0..n - 1 {
-            for j in 0..n - 1 {
-                for i in 0..n - 1 {
-                    let h = [
-                        id(i, j, k),
-                        id(i + 1, j, k),
-                        id(i + 1, j + 1, k),
-                        id(i, j + 1, k),
-                        id(i, j, k + 1),
-                        id(i + 1, j, k + 1),
-                        id(i + 1, j + 1, k + 1),
-                        id(i, j + 1, k + 1),
-                    ];
-                    tets.extend(split_hex(h));
-                }
-            }
-        }
+        let tets = lattice_tets(n, id);
         let m = (n - 1) * (n - 1);
         check_conforming(&pts, &tets, ((n - 1) * m) as f64, 6 * m * 2);
     }

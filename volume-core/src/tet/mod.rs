@@ -24,7 +24,8 @@ pub mod traverse;
 
 pub use bvh::{BvhBuilder, BvhInfo, BvhNode, BvhOptions, TetBvh};
 pub use mesh::{
-    PointField, TetError, TetMesh, points_from_f64, split_hex, split_pyramid, split_wedge,
+    PointField, TetError, TetMesh, lattice_tets, points_from_f64, split_hex, split_pyramid,
+    split_wedge,
 };
 pub use scene::{TetNormals, TetScene};
 pub use steps::{StepScheme, TetStep, TetSteps};

@@ -517,7 +517,7 @@ impl IsoScene for TetScene {
 mod tests {
     use super::*;
     use crate::render::NoStats;
-    use crate::tet::{PointField, split_hex};
+    use crate::tet::{PointField, lattice_tets};
 
     /// A jittered `n³`-point grid, 6 tets per cell, with a bumpy distance field.
     fn grid_scene(n: usize, seed: u64) -> TetScene {
@@ -539,23 +539,7 @@ mod tests {
                 }
             }
         }
-        let mut tets = Vec::new();
-        for k in 0..n - 1 {
-            for j in 0..n - 1 {
-                for i in 0..n - 1 {
-                    tets.extend(split_hex([
-                        id(i, j, k),
-                        id(i + 1, j, k),
-                        id(i + 1, j + 1, k),
-                        id(i, j + 1, k),
-                        id(i, j, k + 1),
-                        id(i + 1, j, k + 1),
-                        id(i + 1, j + 1, k + 1),
-                        id(i, j + 1, k + 1),
-                    ]));
-                }
-            }
-        }
+        let tets = lattice_tets(n, id);
         let mesh = TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap();
         TetScene::new(&mesh, "f", BvhOptions::default()).unwrap()
     }
