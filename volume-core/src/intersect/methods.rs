@@ -11,7 +11,6 @@ use wide::f32x8;
 
 use crate::voxel::{Voxel, VoxelType};
 
-use super::packet::LANES;
 use super::{CellIntersector, CellSegment, RootsX8, SegmentsX8};
 
 /// Corner differences `v − iso` as `f32`, scaled by an exact power of two (or `1/max` when
@@ -309,10 +308,7 @@ impl CellIntersector for Exact {
         seg: &SegmentsX8<'_>,
         mask: u32,
     ) -> RootsX8 {
-        let mut r = RootsX8 {
-            s: [0.0; LANES],
-            mask: 0,
-        };
+        let mut r = RootsX8::default();
         let (g, gmax) = corner_diffs(corners, iso);
         if gmax == 0.0 {
             // `setup`'s Err: the cell equals the isovalue, every segment is hit at its entry.

@@ -91,7 +91,7 @@ impl SegmentsX8<'_> {
 }
 
 /// First roots `s ∈ [0, 1]` for the lanes in a bit mask (bit `i` = lane `i`).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub struct RootsX8 {
     pub s: [f64; LANES],
     pub mask: u32,
@@ -173,10 +173,7 @@ pub fn first_roots_by_lane<T: Voxel, C: CellIntersector>(
     seg: &SegmentsX8<'_>,
     mask: u32,
 ) -> RootsX8 {
-    let mut r = RootsX8 {
-        s: [0.0; LANES],
-        mask: 0,
-    };
+    let mut r = RootsX8::default();
     let mut bits = mask;
     while bits != 0 {
         let i = bits.trailing_zeros() as usize;
