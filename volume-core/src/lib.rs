@@ -17,9 +17,8 @@
 //! Dependency rule: nothing here knows about files, GUIs, command lines or `anyhow`
 //! (see `docs/architecture.md`).
 
-pub mod dda;
 pub mod error;
-pub mod grid_scene;
+pub mod grid;
 pub mod intersect;
 pub mod kdtree;
 pub mod math;

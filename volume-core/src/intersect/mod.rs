@@ -1,6 +1,6 @@
 //! Ray–isosurface intersection inside trilinear cells (thesis seed 004 §6.1.1, §6.5.2,
 //! §7.2.2), shared by the kd-tree ([`crate::kdtree`]) and its brute-force twin
-//! ([`crate::dda`]).
+//! ([`crate::grid::dda`]).
 //!
 //! - [`frame`]: world rays into traversal (cell) units; cell boxes; world normals.
 //! - [`methods`]: the cubic along a cell segment and the five intersectors.

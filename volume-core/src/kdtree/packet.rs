@@ -10,7 +10,7 @@
 //! once per packet; slab, segment, cubic and early out in `f32x8` lanes with the scalar
 //! operations, [`crate::intersect::packet`]), so packet results equal single-ray results
 //! (tested). Packets need every ray to share the sign of each direction component and have
-//! no zero component; [`crate::grid_scene::GridScene`] splits other groups into packets of 8
+//! no zero component; [`crate::grid::GridScene`] splits other groups into packets of 8
 //! or traces them one by one.
 
 use wide::f32x8;

@@ -21,9 +21,9 @@
 //! ranges read from the current treelet: at the bottom of a treelet it continues in the
 //! child treelet if its level is published and the treelet resident, and otherwise
 //! intersects the cell of the current level's LOD voxels with the shared cell intersector
-//! and normal code ([`intersect_cell`], [`crate::grid_scene::make_hit`]) through a
+//! and normal code ([`intersect_cell`], [`crate::grid::make_hit`]) through a
 //! treelet-local [`TraversalFrame`]. At the finest level the cells, voxels and positions are
-//! the in-core ones, so hits equal [`crate::grid_scene::GridScene`]'s; quantized ranges only
+//! the in-core ones, so hits equal [`crate::grid::GridScene`]'s; quantized ranges only
 //! add visited nodes.
 
 use std::collections::HashMap;
@@ -36,7 +36,7 @@ use super::OocError;
 use super::layout::linear_index;
 use super::quantize::CodeQuery;
 use super::treelet::{OocMeta, TreeletRecord, TreeletStorage};
-use crate::grid_scene::make_hit;
+use crate::grid::make_hit;
 use crate::intersect::{
     CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
     intersect_cell,
@@ -1159,8 +1159,8 @@ impl AnyOocVolume {
     }
 
     /// Hands this frame's typed [`OocScene`] to `visitor` (monomorphized rendering, as
-    /// [`crate::grid_scene::AnyGridScene::visit`]).
-    pub fn visit_scene<V: crate::grid_scene::SceneVisitor>(
+    /// [`crate::grid::AnyGridScene::visit`]).
+    pub fn visit_scene<V: crate::render::SceneVisitor>(
         &self,
         intersector: Intersector,
         visitor: V,
@@ -1189,7 +1189,7 @@ impl AnyOocVolume {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid_scene::GridScene;
+    use crate::grid::GridScene;
     use crate::kdtree::KdTreeConfig;
     use crate::ooc::build::build_treelets;
     use crate::ooc::layout::TreeletLayout;

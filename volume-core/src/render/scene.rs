@@ -156,3 +156,11 @@ pub trait IsoScene: Sync {
         }
     }
 }
+
+/// Receives a concretely typed scene from a holder of one of several types
+/// ([`crate::grid::AnyGridScene::visit`], [`crate::ooc::AnyOocVolume::visit_scene`]), so
+/// the code it runs is monomorphized for that scene.
+pub trait SceneVisitor {
+    type Output;
+    fn visit<S: IsoScene>(self, scene: &S) -> Self::Output;
+}

@@ -8,6 +8,7 @@
 //! §5). The walk stops once the next cell starts beyond the nearest hit so far, so the
 //! result does not depend on the visiting order of cells that share a boundary point.
 
+use super::normals::make_hit;
 use crate::intersect::{
     CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame, intersect_cell,
 };
@@ -15,7 +16,7 @@ use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::voxel::Voxel;
 
-/// A borrowed view of a grid scene walked cell by cell (see [`crate::grid_scene::GridScene::dda`]).
+/// A borrowed view of a grid scene walked cell by cell (see [`super::GridScene::dda`]).
 #[derive(Clone, Copy)]
 pub struct DdaScene<'a, T: Voxel> {
     frame: &'a TraversalFrame,
@@ -190,14 +191,7 @@ impl<'a, T: Voxel> DdaScene<'a, T> {
         let local = self.frame.to_local(ray);
         let isos = IsoSet::new(isovalues);
         let h = self.cell_hit_with(&local, t_min, t_max, &isos, intersector, stats)?;
-        Some(crate::grid_scene::make_hit(
-            self.frame,
-            self.voxels,
-            self.dims,
-            &local,
-            ray,
-            h,
-        ))
+        Some(make_hit(self.frame, self.voxels, self.dims, &local, ray, h))
     }
 }
 
