@@ -3,7 +3,7 @@
 //!
 //! - [`scene`]: [`GridScene<T>`] (voxels of native type `T`, the implicit min/max
 //!   [`crate::kdtree`], a cell intersector) and [`AnyGridScene`], one of those for whatever
-//!   voxel type a volume has.
+//!   voxel type a volume has; a time step refits or rebuilds it ([`StepSwitch`]).
 //! - [`dda`]: [`DdaScene`], the brute-force 3D-DDA walk over the same cells: the test oracle
 //!   of the kd-tree and the baseline of `isoscope bench`.
 //! - [`normals`]: shading normals from central differences (§6.4) and [`make_hit`], which
@@ -18,4 +18,4 @@ pub mod scene;
 
 pub use dda::DdaScene;
 pub use normals::{make_hit, normal_at};
-pub use scene::{AnyGridScene, GridScene};
+pub use scene::{AnyGridScene, GridScene, StepSwitch};

@@ -25,7 +25,7 @@ use crate::kdtree::{
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, SceneVisitor, Stats};
 use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
-use crate::voxel::{Voxel, VoxelType};
+use crate::voxel::Voxel;
 
 /// A rectilinear volume of voxel type `T`, ready for ray casting.
 #[derive(Clone)]
@@ -341,34 +341,29 @@ impl<T: Voxel> IsoScene for GridScene<T> {
     }
 }
 
-/// A [`GridScene`] of whichever voxel type the volume has.
-#[derive(Debug, Clone)]
-pub enum AnyGridScene {
-    U8(GridScene<u8>),
-    I8(GridScene<i8>),
-    U16(GridScene<u16>),
-    I16(GridScene<i16>),
-    U32(GridScene<u32>),
-    I32(GridScene<i32>),
-    F32(GridScene<f32>),
-    F64(GridScene<f64>),
+crate::voxel_enum! {
+    /// A [`GridScene`] of whichever voxel type the volume has.
+    #[derive(Debug, Clone)]
+    pub enum AnyGridScene(GridScene)
 }
 
-/// Runs `$body` with `$s` bound to the typed [`GridScene`] inside an [`AnyGridScene`].
+/// Runs `$body` with `$s` bound to the typed [`GridScene`] inside an [`AnyGridScene`]
+/// ([`crate::match_voxel!`] for `AnyGridScene`).
 #[macro_export]
 macro_rules! dispatch_grid_scene {
     ($scene:expr, $s:ident => $body:expr) => {
-        match $scene {
-            $crate::grid::AnyGridScene::U8($s) => $body,
-            $crate::grid::AnyGridScene::I8($s) => $body,
-            $crate::grid::AnyGridScene::U16($s) => $body,
-            $crate::grid::AnyGridScene::I16($s) => $body,
-            $crate::grid::AnyGridScene::U32($s) => $body,
-            $crate::grid::AnyGridScene::I32($s) => $body,
-            $crate::grid::AnyGridScene::F32($s) => $body,
-            $crate::grid::AnyGridScene::F64($s) => $body,
-        }
+        $crate::match_voxel!($crate::grid::AnyGridScene, $scene, $s => $body)
     };
+}
+
+/// What [`AnyGridScene::update_volume`] did for a new time step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepSwitch {
+    /// Same dims and voxel type: the tree was refit in place (thesis §7.6) and the split
+    /// tables recomputed.
+    Refit,
+    /// Other dims or voxel type: the scene was rebuilt.
+    Rebuild,
 }
 
 impl AnyGridScene {
@@ -384,46 +379,11 @@ impl AnyGridScene {
     ) -> Self {
         let g = &volume.grid;
         // Lengths were checked when the volume was made.
-        let build = |r: Result<Self, VolumeError>| r.expect("volume length checked");
-        match &volume.data {
-            VoxelData::U8(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::U8))
-            }
-            VoxelData::I8(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::I8))
-            }
-            VoxelData::U16(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::U16))
-            }
-            VoxelData::I16(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::I16))
-            }
-            VoxelData::U32(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::U32))
-            }
-            VoxelData::I32(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::I32))
-            }
-            VoxelData::F32(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::F32))
-            }
-            VoxelData::F64(b) => {
-                build(GridScene::new(g, b.clone(), intersector, config).map(Self::F64))
-            }
-        }
-    }
-
-    pub fn voxel_type(&self) -> VoxelType {
-        match self {
-            Self::U8(_) => VoxelType::U8,
-            Self::I8(_) => VoxelType::I8,
-            Self::U16(_) => VoxelType::U16,
-            Self::I16(_) => VoxelType::I16,
-            Self::U32(_) => VoxelType::U32,
-            Self::I32(_) => VoxelType::I32,
-            Self::F32(_) => VoxelType::F32,
-            Self::F64(_) => VoxelType::F64,
-        }
+        crate::dispatch_voxels!(&volume.data, b => {
+            GridScene::new(g, b.clone(), intersector, config)
+                .expect("volume length checked")
+                .into()
+        })
     }
 
     pub fn intersector(&self) -> Intersector {
@@ -453,24 +413,21 @@ impl AnyGridScene {
 
     /// Switches to another volume (a time step). Same dims and voxel type: the tree is
     /// refit (thesis §7.6) and the split tables are recomputed; otherwise it is rebuilt.
-    pub fn update_volume(&mut self, volume: &RectilinearVolume) {
-        let intersector = self.intersector();
+    pub fn update_volume(&mut self, volume: &RectilinearVolume) -> StepSwitch {
         let same_dims = volume.dims() == self.dims();
-        let refit = match (&mut *self, &volume.data) {
-            (Self::U8(s), VoxelData::U8(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::I8(s), VoxelData::I8(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::U16(s), VoxelData::U16(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::I16(s), VoxelData::I16(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::U32(s), VoxelData::U32(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::I32(s), VoxelData::I32(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::F32(s), VoxelData::F32(b)) if same_dims => s.replace_voxels(b.clone()),
-            (Self::F64(s), VoxelData::F64(b)) if same_dims => s.replace_voxels(b.clone()),
-            _ => Err(VolumeError::EmptyDims { dims: [0; 3] }),
-        };
-        let ok = refit.is_ok()
-            && dispatch_grid_scene!(&mut *self, s => s.set_grid(&volume.grid).is_ok());
-        if !ok {
-            *self = Self::new(volume, intersector);
+        // Same dims: the lengths match, so replacing the voxels and the grid cannot fail.
+        let refit = same_dims
+            && crate::match_voxel!(
+                AnyGridScene, &mut *self, s; VoxelData, &volume.data, b => {
+                    s.replace_voxels(b.clone()).is_ok() && s.set_grid(&volume.grid).is_ok()
+                };
+                else false
+            );
+        if refit {
+            StepSwitch::Refit
+        } else {
+            *self = Self::new(volume, self.intersector());
+            StepSwitch::Rebuild
         }
     }
 

@@ -1066,48 +1066,25 @@ impl<T: Voxel> IsoScene for OocScene<T> {
     }
 }
 
-/// An [`OocVolume`] of whichever voxel type the storage holds.
-#[derive(Debug)]
-pub enum AnyOocVolume {
-    U8(OocVolume<u8>),
-    I8(OocVolume<i8>),
-    U16(OocVolume<u16>),
-    I16(OocVolume<i16>),
-    U32(OocVolume<u32>),
-    I32(OocVolume<i32>),
-    F32(OocVolume<f32>),
-    F64(OocVolume<f64>),
+crate::voxel_enum! {
+    /// An [`OocVolume`] of whichever voxel type the storage holds.
+    #[derive(Debug)]
+    pub enum AnyOocVolume(OocVolume)
 }
 
+/// [`crate::match_voxel!`] for [`AnyOocVolume`].
 macro_rules! dispatch_ooc {
     ($v:expr, $s:ident => $body:expr) => {
-        match $v {
-            AnyOocVolume::U8($s) => $body,
-            AnyOocVolume::I8($s) => $body,
-            AnyOocVolume::U16($s) => $body,
-            AnyOocVolume::I16($s) => $body,
-            AnyOocVolume::U32($s) => $body,
-            AnyOocVolume::I32($s) => $body,
-            AnyOocVolume::F32($s) => $body,
-            AnyOocVolume::F64($s) => $body,
-        }
+        crate::match_voxel!(AnyOocVolume, $v, $s => $body)
     };
 }
 
 impl AnyOocVolume {
     /// Opens `storage` with the voxel type it records.
     pub fn open(storage: Arc<dyn TreeletStorage>, options: OocOptions) -> Result<Self, OocError> {
-        use crate::voxel::VoxelType as V;
-        Ok(match storage.meta().voxel_type {
-            V::U8 => Self::U8(OocVolume::open(storage, options)?),
-            V::I8 => Self::I8(OocVolume::open(storage, options)?),
-            V::U16 => Self::U16(OocVolume::open(storage, options)?),
-            V::I16 => Self::I16(OocVolume::open(storage, options)?),
-            V::U32 => Self::U32(OocVolume::open(storage, options)?),
-            V::I32 => Self::I32(OocVolume::open(storage, options)?),
-            V::F32 => Self::F32(OocVolume::open(storage, options)?),
-            V::F64 => Self::F64(OocVolume::open(storage, options)?),
-        })
+        Ok(crate::match_voxel_type!(storage.meta().voxel_type, V => {
+            OocVolume::<V>::open(storage, options)?.into()
+        }))
     }
 
     pub fn meta(&self) -> &OocMeta {
