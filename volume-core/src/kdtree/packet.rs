@@ -15,7 +15,8 @@
 
 use wide::f32x8;
 
-use super::{INLINE_STACK, KdTree, addr};
+use super::step::{Step, Visit, take_step};
+use super::{INLINE_STACK, KdTree};
 use crate::intersect::{
     CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, RaysX8, TraversalFrame,
     intersect_prepared_cell, intersect_prepared_cell_x8,
@@ -297,62 +298,48 @@ impl<T: Voxel> KdTree<T> {
                     });
                     break;
                 }
-                let lv = &self.levels[level];
                 stats.node();
-                let a = lv.axis;
-                let u = lv.unit;
-                let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
-                let split = self.splits[lv.split_offset + na as usize];
-                let left = [node[0] << u[0], node[1] << u[1], node[2] << u[2]];
-                let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
-                let right_real = 2 * na + 1 < lv.child_count;
+                let ch = self.children(level, node, isos);
                 level += 1;
-                self.prefetch_grandchildren(level, left);
-                let (left_live, right_live) = if level < self.stored {
-                    let i = lv.child_offset + addr(lv.child_stride, left);
-                    let l = self.ranges[i];
-                    let live_l = isos.any_in(l[0], l[1]);
-                    let live_r = right_real && {
-                        let r = self.ranges[i + 1];
-                        isos.any_in(r[0], r[1])
-                    };
-                    (live_l, live_r)
-                } else {
-                    (true, right_real)
-                };
-                let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(split) - o) * v);
-                let (near, far, near_real, far_real) = if dir_pos[a] {
-                    (left, right, left_live, right_live)
-                } else {
-                    (right, left, right_live, left_live)
-                };
+                let a = ch.axis;
+                let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(ch.split) - o) * v);
+                // The packet enters one child when every active ray does (module docs).
                 let beyond = bits(&ts, &tf, f32x8::simd_gt);
                 let before = bits(&ts, &tn, f32x8::simd_lt);
-                if beyond & active == active {
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
+                let visit = if beyond & active == active {
+                    Visit::Near
                 } else if before & active == active {
-                    if !far_real {
-                        break;
-                    }
-                    node = far;
+                    Visit::Far
                 } else {
-                    if far_real {
-                        stack[sp] = PacketEntry {
-                            node: far,
-                            level: level as u32,
-                            t_near: map2(&tn, &ts, f32x8::max),
-                            t_far: tf,
-                        };
-                        sp += 1;
+                    Visit::Both {
+                        near_t_far: map2(&tf, &ts, f32x8::min),
+                        far_t_near: map2(&tn, &ts, f32x8::max),
                     }
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
-                    tf = map2(&tf, &ts, f32x8::min);
+                };
+                let step = Step {
+                    near_is_left: dir_pos[a],
+                    visit,
+                };
+                let push = |far, t_near, t_far| {
+                    stack[sp] = PacketEntry {
+                        node: far,
+                        level: level as u32,
+                        t_near,
+                        t_far,
+                    };
+                    sp += 1;
+                };
+                match take_step(
+                    step,
+                    ch.left,
+                    ch.right,
+                    ch.left_live,
+                    ch.right_live,
+                    &mut tf,
+                    push,
+                ) {
+                    Some(next) => node = next,
+                    None => break,
                 }
             }
             loop {

@@ -41,6 +41,7 @@ use crate::intersect::{
     CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
     intersect_cell,
 };
+use crate::kdtree::step::{ray_step, take_step};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::voxel::Voxel;
@@ -958,67 +959,27 @@ impl<T: Voxel> OocScene<T> {
                 let right_real = u64::from(right[a]) < shapes[level + 1].count[a];
                 let (h_left, h_right) = (2 * h + 1, 2 * h + 2);
                 level += 1;
-                let o = ray.origin[a];
-                let d = ray.dir[a];
-                let entry = |node: [u32; 3], h: usize, t_near: f32, t_far: f32| Entry {
-                    node,
-                    level: level as u32,
-                    h: h as u32,
-                    tl: tl as u32,
-                    ti,
-                    t_near,
-                    t_far,
+                let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], split, ta, tb);
+                // The left child is always real; culling happens when a node is entered.
+                let push = |(far, h_far): ([u32; 3], usize), t_near, t_far| {
+                    stack[sp] = Entry {
+                        node: far,
+                        level: level as u32,
+                        h: h_far as u32,
+                        tl: tl as u32,
+                        ti,
+                        t_near,
+                        t_far,
+                    };
+                    sp += 1;
                 };
-                if d == 0.0 {
-                    if o < split {
-                        node = left;
-                        h = h_left;
-                    } else if o > split {
-                        if !right_real {
-                            break;
-                        }
-                        node = right;
-                        h = h_right;
-                    } else {
-                        // In the split plane: both sides (seed 000 §5).
-                        if right_real {
-                            stack[sp] = entry(right, h_right, ta, tb);
-                            sp += 1;
-                        }
-                        node = left;
-                        h = h_left;
+                let (l, r) = ((left, h_left), (right, h_right));
+                match take_step(step, l, r, true, right_real, &mut tb, push) {
+                    Some((next, h_next)) => {
+                        node = next;
+                        h = h_next;
                     }
-                    continue;
-                }
-                let ts = (split - o) * ray.inv_dir[a];
-                let (near, far, h_near, h_far, near_real, far_real) = if d > 0.0 {
-                    (left, right, h_left, h_right, true, right_real)
-                } else {
-                    (right, left, h_right, h_left, right_real, true)
-                };
-                if ts > tb {
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
-                    h = h_near;
-                } else if ts < ta {
-                    if !far_real {
-                        break;
-                    }
-                    node = far;
-                    h = h_far;
-                } else {
-                    if far_real {
-                        stack[sp] = entry(far, h_far, ts, tb);
-                        sp += 1;
-                    }
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
-                    h = h_near;
-                    tb = ts;
+                    None => break,
                 }
             }
             loop {
