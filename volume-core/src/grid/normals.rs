@@ -1,7 +1,5 @@
-//! Shading normals of rectilinear isosurfaces (thesis seed 004 §6.4), and [`make_hit`],
-//! which turns a traversal's [`CellHit`] into a world-space [`Hit`] for the kd-tree
-//! ([`super::scene`]), the DDA twin ([`super::dda`]) and the out-of-core scene
-//! ([`crate::ooc`]).
+//! Shading normals of rectilinear isosurfaces (thesis seed 004 §6.4), for the hits of
+//! [`super::hit`].
 //!
 //! Central differences at the 8 corners of the hit cell (one-sided at the volume border or
 //! next to a void neighbour), trilinearly interpolated at the hit ("derivative first", as the
@@ -12,31 +10,8 @@
 
 use glam::{DVec3, Vec3};
 
-use crate::intersect::{CellHit, LocalRay, TraversalFrame};
-use crate::math::Ray;
-use crate::render::Hit;
+use crate::intersect::TraversalFrame;
 use crate::voxel::{Voxel, VoxelType};
-
-/// Turns a cell hit into a [`Hit`] with a world-space normal.
-pub fn make_hit<T: Voxel>(
-    frame: &TraversalFrame,
-    voxels: &[T],
-    dims: [usize; 3],
-    local: &LocalRay,
-    world: &Ray,
-    h: CellHit,
-) -> Hit {
-    let (lo, hi) = frame.cell_box(h.cell);
-    let p = local.origin + local.dir * h.t;
-    let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
-    let normal = normal_at(frame, voxels, dims, h.cell, uvw)
-        .unwrap_or_else(|| (-world.dir).normalize_or(Vec3::Z));
-    Hit {
-        t: h.t,
-        surface: h.surface,
-        normal,
-    }
-}
 
 /// World normal at cell-local position `uvw` of `cell` (see the module docs).
 pub fn normal_at<T: Voxel>(

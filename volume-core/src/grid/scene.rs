@@ -16,7 +16,7 @@ use std::time::Duration;
 use glam::Vec3;
 
 use super::dda::DdaScene;
-use super::normals::make_hit;
+use super::hit::{CellBlock, CellTrace, first_hit_with, make_hit};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
 use crate::kdtree::{
@@ -274,55 +274,67 @@ impl<T: Voxel> GridScene<T> {
         }
     }
 
-    /// [`IsoScene::first_hit`] with a static intersector `C` (no per-ray dispatch).
+    /// The grid as the block every hit lies in.
+    fn block(&self) -> CellBlock<'_, T> {
+        CellBlock {
+            frame: &self.frame,
+            voxels: self.voxels.as_slice(),
+            dims: self.dims,
+        }
+    }
+}
+
+impl<T: Voxel> CellTrace<T> for GridScene<T> {
+    type Isovalues = IsoSet<T>;
+
+    fn frame(&self) -> &TraversalFrame {
+        &self.frame
+    }
+
     #[inline]
-    pub fn first_hit_with<C: CellIntersector, S: Stats>(
+    fn cell_hit<C: CellIntersector, S: Stats>(
         &self,
-        ray: &Ray,
+        ray: &LocalRay,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &IsoSet<T>,
         intersector: C,
         stats: &mut S,
-    ) -> Option<Hit> {
-        stats.ray();
-        let local = self.frame.to_local(ray);
-        let isos = IsoSet::new(isovalues);
-        let h = self.cell_hit_with(&local, t_min, t_max, &isos, intersector, stats)?;
-        Some(make_hit(
-            &self.frame,
-            self.voxels.as_slice(),
-            self.dims,
-            &local,
-            ray,
-            h,
-        ))
+    ) -> Option<(CellHit, CellBlock<'_, T>)> {
+        let h = self.cell_hit_with(ray, t_min, t_max, isos, intersector, stats)?;
+        Some((h, self.block()))
     }
 }
 
 impl<T: Voxel> IsoScene for GridScene<T> {
+    type Isovalues = IsoSet<T>;
+
+    fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
+        IsoSet::new(isovalues)
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.frame.world_bounds()
     }
 
     #[inline]
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &IsoSet<T>,
         stats: &mut S,
     ) -> Option<Hit> {
-        crate::dispatch_intersector!(self.intersector, c => self.first_hit_with(ray, t_min, t_max, isovalues, c, stats))
+        crate::dispatch_intersector!(self.intersector, c => first_hit_with(self, ray, t_min, t_max, isos, c, stats))
     }
 
-    fn first_hit_packet<S: Stats>(
+    fn first_hit_packet_prepared<S: Stats>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
-        isovalues: &[f32],
+        isos: &IsoSet<T>,
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
@@ -330,11 +342,10 @@ impl<T: Voxel> IsoScene for GridScene<T> {
             if rays.is_empty() {
                 return;
             }
-            let isos = IsoSet::new(isovalues);
             with_packet_stack(|stack| {
                 for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
                     let base = start * PACKET_WIDTH;
-                    self.packet_with(stack, chunk, &t_min[base..], &t_max[base..], &isos, c, &mut out[base..], stats);
+                    self.packet_with(stack, chunk, &t_min[base..], &t_max[base..], isos, c, &mut out[base..], stats);
                 }
             });
         });
@@ -442,32 +453,55 @@ impl AnyGridScene {
     }
 }
 
+crate::voxel_enum! {
+    /// The active isovalues prepared for an [`AnyGridScene`]: the [`IsoSet`] of its voxel
+    /// type.
+    #[derive(Debug, Clone)]
+    pub enum AnyIsoSet(IsoSet)
+}
+
+/// Isovalues handed to a scene other than the one that prepared them.
+#[cold]
+fn isovalues_of_another_type() -> ! {
+    panic!("isovalues prepared by an AnyGridScene of another voxel type")
+}
+
 impl IsoScene for AnyGridScene {
+    type Isovalues = AnyIsoSet;
+
+    fn prepare(&self, isovalues: &[f32]) -> AnyIsoSet {
+        dispatch_grid_scene!(self, s => s.prepare(isovalues).into())
+    }
+
     fn world_bounds(&self) -> Aabb {
         dispatch_grid_scene!(self, s => s.world_bounds())
     }
 
     #[inline]
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &AnyIsoSet,
         stats: &mut S,
     ) -> Option<Hit> {
-        dispatch_grid_scene!(self, s => s.first_hit(ray, t_min, t_max, isovalues, stats))
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.first_hit_prepared(ray, t_min, t_max, i, stats)
+        }; else isovalues_of_another_type())
     }
 
-    fn first_hit_packet<S: Stats>(
+    fn first_hit_packet_prepared<S: Stats>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
-        isovalues: &[f32],
+        isos: &AnyIsoSet,
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        dispatch_grid_scene!(self, s => s.first_hit_packet(rays, t_min, t_max, isovalues, out, stats));
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.first_hit_packet_prepared(rays, t_min, t_max, i, out, stats);
+        }; else isovalues_of_another_type());
     }
 }

@@ -247,7 +247,8 @@ pub trait CellIntersector: Copy + Send + Sync + 'static {
 /// set then lives on the heap).
 pub const INLINE_ISOVALUES: usize = 16;
 
-/// Active isovalues converted once per ray into the voxel type's comparable range.
+/// Active isovalues converted into the voxel type's comparable range, once per frame
+/// ([`crate::render::IsoScene::prepare`]).
 ///
 /// Iso `c` lies in a node range `[min, max]` iff `min <= lo && max >= hi`, with
 /// `lo = floor(c)`, `hi = ceil(c)` for integer types (exact: integer ranges contain the

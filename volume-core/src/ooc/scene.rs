@@ -21,7 +21,7 @@
 //! ranges read from the current treelet: at the bottom of a treelet it continues in the
 //! child treelet if its level is published and the treelet resident, and otherwise
 //! intersects the cell of the current level's LOD voxels with the shared cell intersector
-//! and normal code ([`intersect_cell`], [`crate::grid::make_hit`]) through a
+//! and normal code ([`intersect_cell`], [`crate::grid::hit`]) through a
 //! treelet-local [`TraversalFrame`]. At the finest level the cells, voxels and positions are
 //! the in-core ones, so hits equal [`crate::grid::GridScene`]'s; quantized ranges only
 //! add visited nodes.
@@ -36,7 +36,7 @@ use super::OocError;
 use super::layout::linear_index;
 use super::quantize::CodeQuery;
 use super::treelet::{OocMeta, TreeletRecord, TreeletStorage};
-use crate::grid::make_hit;
+use crate::grid::hit::{CellBlock, CellTrace, first_hit_with};
 use crate::intersect::{
     CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
     intersect_cell,
@@ -743,6 +743,42 @@ impl<T: Voxel> Drop for OocVolume<T> {
     }
 }
 
+/// The isovalues of one frame as the out-of-core traversal reads them, prepared once per
+/// frame ([`IsoScene::prepare`]): in the voxel type, and as quantized code queries for the
+/// treelet node ranges (seed 004 §7.8.1).
+#[derive(Debug, Clone)]
+pub struct OocIsovalues<T: Voxel> {
+    set: IsoSet<T>,
+    queries: [CodeQuery; INLINE_ISOVALUES],
+    count: usize,
+    /// More queries than fit: every node passes (conservative).
+    all: bool,
+}
+
+impl<T: Voxel> OocIsovalues<T> {
+    fn new(meta: &OocMeta, isovalues: &[f32]) -> Self {
+        let mut queries = [CodeQuery { a: 0, b: 0 }; INLINE_ISOVALUES];
+        let mut count = 0;
+        let mut all = false;
+        for &c in isovalues {
+            if let Some(q) = meta.quantizer.query(c) {
+                if count == INLINE_ISOVALUES {
+                    all = true;
+                    break;
+                }
+                queries[count] = q;
+                count += 1;
+            }
+        }
+        Self {
+            set: IsoSet::new(isovalues),
+            queries,
+            count,
+            all,
+        }
+    }
+}
+
 /// One frame's view of an [`OocVolume`]: immutable, shared by all render threads.
 pub struct OocScene<T: Voxel> {
     shared: Arc<Shared<T>>,
@@ -795,76 +831,51 @@ impl<T: Voxel> OocScene<T> {
         self.snap.resident_bytes
     }
 
-    /// [`IsoScene::first_hit`] with a static intersector.
-    pub fn first_hit_with<C: CellIntersector, S: Stats>(
+    /// The prepared isovalues as the traversal reads them: an empty set or no quantized
+    /// query means no hit.
+    #[inline]
+    fn cell_hit_in<C: CellIntersector, S: Stats>(
         &self,
-        ray: &Ray,
+        ray: &LocalRay,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &OocIsovalues<T>,
         intersector: C,
         stats: &mut S,
-    ) -> Option<Hit> {
-        stats.ray();
-        let frame = &self.shared.frame;
-        let local = frame.to_local(ray);
-        let isos = IsoSet::<T>::new(isovalues);
-        if isos.is_empty() {
+    ) -> Option<(CellHit, &ResidentTreelet<T>)> {
+        if isos.set.is_empty() || isos.count == 0 {
             return None;
         }
-        let (t0, t1) = frame.clip(&local, t_min, t_max)?;
-        let mut queries = [CodeQuery { a: 0, b: 0 }; INLINE_ISOVALUES];
-        let mut nq = 0;
-        let mut all = false;
-        for &c in isovalues {
-            if let Some(q) = self.shared.meta.quantizer.query(c) {
-                if nq == INLINE_ISOVALUES {
-                    all = true;
-                    break;
-                }
-                queries[nq] = q;
-                nq += 1;
-            }
-        }
-        if nq == 0 {
-            return None;
-        }
+        let (t0, t1) = self.shared.frame.clip(ray, t_min, t_max)?;
+        let queries = &isos.queries[..isos.count];
         let depth = self.shared.meta.layout.depth();
-        let (h, t) = if depth < INLINE_STACK {
+        if depth < INLINE_STACK {
             let mut stack = [Entry::default(); INLINE_STACK];
             self.traverse(
-                &local,
+                ray,
                 t0,
                 t1,
-                &isos,
-                &queries[..nq],
-                all,
+                &isos.set,
+                queries,
+                isos.all,
                 intersector,
                 stats,
                 &mut stack,
-            )?
+            )
         } else {
             let mut stack = vec![Entry::default(); depth + 1];
             self.traverse(
-                &local,
+                ray,
                 t0,
                 t1,
-                &isos,
-                &queries[..nq],
-                all,
+                &isos.set,
+                queries,
+                isos.all,
                 intersector,
                 stats,
                 &mut stack,
-            )?
-        };
-        Some(make_hit(
-            &t.frame,
-            &t.rec.voxels,
-            t.rec.voxel_dims,
-            &local,
-            ray,
-            h,
-        ))
+            )
+        }
     }
 
     #[inline(always)]
@@ -1009,21 +1020,54 @@ impl<T: Voxel> OocScene<T> {
     }
 }
 
+impl<T: Voxel> CellTrace<T> for OocScene<T> {
+    type Isovalues = OocIsovalues<T>;
+
+    fn frame(&self) -> &TraversalFrame {
+        &self.shared.frame
+    }
+
+    #[inline]
+    fn cell_hit<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &LocalRay,
+        t_min: f32,
+        t_max: f32,
+        isos: &OocIsovalues<T>,
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<(CellHit, CellBlock<'_, T>)> {
+        let (h, t) = self.cell_hit_in(ray, t_min, t_max, isos, intersector, stats)?;
+        let block = CellBlock {
+            frame: &t.frame,
+            voxels: &t.rec.voxels,
+            dims: t.rec.voxel_dims,
+        };
+        Some((h, block))
+    }
+}
+
 impl<T: Voxel> IsoScene for OocScene<T> {
+    type Isovalues = OocIsovalues<T>;
+
+    fn prepare(&self, isovalues: &[f32]) -> OocIsovalues<T> {
+        OocIsovalues::new(&self.shared.meta, isovalues)
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.shared.frame.world_bounds()
     }
 
     #[inline]
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &OocIsovalues<T>,
         stats: &mut S,
     ) -> Option<Hit> {
-        crate::dispatch_intersector!(self.intersector, c => self.first_hit_with(ray, t_min, t_max, isovalues, c, stats))
+        crate::dispatch_intersector!(self.intersector, c => first_hit_with(self, ray, t_min, t_max, isos, c, stats))
     }
 }
 

@@ -124,11 +124,13 @@ pub fn render_into<S: IsoScene>(
 }
 
 /// Frame-wide constants shared by all tiles.
-struct Ctx<'a> {
+struct Ctx<'a, I> {
     settings: &'a RenderSettings,
     raygen: RayGen,
     shader: Shader,
     isovalues: Vec<f32>,
+    /// `isovalues` as the scene prepared them, once for the frame ([`IsoScene::prepare`]).
+    isos: I,
     surface_of: Vec<usize>,
     bounds: Aabb,
     /// Minimum distance past a transparent hit (absolute part; a relative part is added).
@@ -248,6 +250,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         settings,
         raygen: RayGen::new(camera, width, height),
         shader: Shader::new(&settings.light),
+        isos: scene.prepare(&isovalues),
         isovalues,
         surface_of,
         bounds,
@@ -319,7 +322,7 @@ fn to_u8(c: f32) -> u8 {
 /// Renders tile `tx` of `band` into the band's rows.
 fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     scene: &S,
-    ctx: &Ctx<'_>,
+    ctx: &Ctx<'_, S::Isovalues>,
     tx: u32,
     band: &mut Band<'_>,
     sc: &mut Scratch,
@@ -432,21 +435,21 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         sc.hits.clear();
         sc.hits.resize(n, None);
         if settings.packets {
-            scene.first_hit_packet(
+            scene.first_hit_packet_prepared(
                 &sc.rays,
                 &sc.t_min,
                 &sc.t_max,
-                &ctx.isovalues,
+                &ctx.isos,
                 &mut sc.hits,
                 &mut tally.stats,
             );
         } else {
             for k in 0..n {
-                sc.hits[k] = scene.first_hit(
+                sc.hits[k] = scene.first_hit_prepared(
                     &sc.rays[k],
                     sc.t_min[k],
                     sc.t_max[k],
-                    &ctx.isovalues,
+                    &ctx.isos,
                     &mut tally.stats,
                 );
             }
@@ -592,7 +595,7 @@ fn next_round(sc: &mut Scratch, rays: &mut RayCounts) {
 #[inline]
 fn shade_hit<S: IsoScene, St: Stats, const SHADOWS: bool>(
     scene: &S,
-    ctx: &Ctx<'_>,
+    ctx: &Ctx<'_, S::Isovalues>,
     ray: &Ray,
     hit: &Hit,
     color: Vec3,
@@ -616,7 +619,7 @@ fn shade_hit<S: IsoScene, St: Stats, const SHADOWS: bool>(
         kept_intervals(&shadow, range, &ctx.settings.clips, clip_out, clip_tmp);
         if clip_out
             .iter()
-            .any(|iv| scene.occluded(&shadow, iv.lo, iv.hi, &ctx.isovalues, stats))
+            .any(|iv| scene.occluded_prepared(&shadow, iv.lo, iv.hi, &ctx.isos, stats))
         {
             lit = 0.0;
         }

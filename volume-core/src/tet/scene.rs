@@ -430,16 +430,23 @@ fn tet_gradient(verts: &[Vec4], t: &[u32; 4]) -> (DVec3, f64) {
 }
 
 impl IsoScene for TetScene {
+    /// The isovalues as given: the BVH tests them per node and tet as they are.
+    type Isovalues = Vec<f32>;
+
+    fn prepare(&self, isovalues: &[f32]) -> Vec<f32> {
+        isovalues.to_vec()
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.bounds
     }
 
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         stats: &mut S,
     ) -> Option<Hit> {
         self.view()
@@ -447,12 +454,12 @@ impl IsoScene for TetScene {
             .map(|h| self.to_hit(ray, &h, isovalues))
     }
 
-    fn occluded<S: Stats>(
+    fn occluded_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         stats: &mut S,
     ) -> bool {
         self.view()
@@ -460,12 +467,12 @@ impl IsoScene for TetScene {
             .is_some()
     }
 
-    fn first_hit_packet<S: Stats>(
+    fn first_hit_packet_prepared<S: Stats>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
