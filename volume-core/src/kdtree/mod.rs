@@ -47,7 +47,7 @@ use crate::intersect::{
 };
 use crate::render::Stats;
 use crate::voxel::Voxel;
-use step::{ray_step, take_step};
+use step::{Step, ray_step, take_step};
 
 /// Build options.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,13 +106,14 @@ pub struct KdTree<T: Voxel> {
     build_time: Duration,
 }
 
-/// One pending far child on the traversal stack.
+/// One pending far child on a traversal stack; `L` is a ray's `t` (`f32`) or a packet's
+/// lanes.
 #[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct Entry {
+pub(crate) struct Entry<L> {
     pub node: [u32; 3],
     pub level: u32,
-    pub t_near: f32,
-    pub t_far: f32,
+    pub t_near: L,
+    pub t_far: L,
 }
 
 /// Stack entries kept inline (trees deeper than this fall back to a heap stack).
@@ -423,7 +424,7 @@ impl<T: Voxel> KdTree<T> {
         isos: &IsoSet<T>,
         intersector: C,
         stats: &mut S,
-        stack: &mut [Entry],
+        stack: &mut [Entry<f32>],
     ) -> Option<CellHit> {
         let mut sp = 0usize;
         let mut best: Option<CellHit> = None;
@@ -461,24 +462,7 @@ impl<T: Voxel> KdTree<T> {
                 level += 1;
                 let a = ch.axis;
                 let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], ch.split, ta, tb);
-                let push = |far, t_near, t_far| {
-                    stack[sp] = Entry {
-                        node: far,
-                        level: level as u32,
-                        t_near,
-                        t_far,
-                    };
-                    sp += 1;
-                };
-                match take_step(
-                    step,
-                    ch.left,
-                    ch.right,
-                    ch.left_live,
-                    ch.right_live,
-                    &mut tb,
-                    push,
-                ) {
+                match ch.descend(step, level, &mut tb, stack, &mut sp) {
                     Some(next) => node = next,
                     None => break,
                 }
@@ -517,6 +501,40 @@ pub(crate) struct Children {
     /// A child is live if it is real and (on a stored level) its range holds an isovalue.
     pub left_live: bool,
     pub right_live: bool,
+}
+
+impl Children {
+    /// Applies `step` ([`take_step`]) for the in-core traversals: a live far child entered
+    /// later is pushed onto `stack` (at `*sp`, for `level`), and the child to descend into is
+    /// returned (`None`: pop).
+    #[inline(always)]
+    pub(crate) fn descend<L: Copy>(
+        &self,
+        step: Step<L>,
+        level: usize,
+        t_far: &mut L,
+        stack: &mut [Entry<L>],
+        sp: &mut usize,
+    ) -> Option<[u32; 3]> {
+        let push = |far, t_near, t_far| {
+            stack[*sp] = Entry {
+                node: far,
+                level: level as u32,
+                t_near,
+                t_far,
+            };
+            *sp += 1;
+        };
+        take_step(
+            step,
+            self.left,
+            self.right,
+            self.left_live,
+            self.right_live,
+            t_far,
+            push,
+        )
+    }
 }
 
 impl<T: Voxel> KdTree<T> {

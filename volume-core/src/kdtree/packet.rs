@@ -15,8 +15,8 @@
 
 use wide::f32x8;
 
-use super::step::{Step, Visit, take_step};
-use super::{INLINE_STACK, KdTree};
+use super::step::{Step, Visit};
+use super::{Entry, INLINE_STACK, KdTree};
 use crate::intersect::{
     CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, RaysX8, TraversalFrame,
     intersect_prepared_cell, intersect_prepared_cell_x8,
@@ -67,24 +67,7 @@ fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
     std::array::from_fn(|h| f(a[h], b[h]))
 }
 
-#[derive(Clone, Copy)]
-struct PacketEntry {
-    node: [u32; 3],
-    level: u32,
-    t_near: Lanes,
-    t_far: Lanes,
-}
-
-impl Default for PacketEntry {
-    fn default() -> Self {
-        Self {
-            node: [0; 3],
-            level: 0,
-            t_near: splat(0.0),
-            t_far: splat(0.0),
-        }
-    }
-}
+type PacketEntry = Entry<Lanes>;
 
 /// The packet traversal stack, reusable across packets (zeroing 64 entries, 10 KB, per packet
 /// would cost more than a short traversal). [`with_packet_stack`] lends each thread one.
@@ -320,24 +303,7 @@ impl<T: Voxel> KdTree<T> {
                     near_is_left: dir_pos[a],
                     visit,
                 };
-                let push = |far, t_near, t_far| {
-                    stack[sp] = PacketEntry {
-                        node: far,
-                        level: level as u32,
-                        t_near,
-                        t_far,
-                    };
-                    sp += 1;
-                };
-                match take_step(
-                    step,
-                    ch.left,
-                    ch.right,
-                    ch.left_live,
-                    ch.right_live,
-                    &mut tf,
-                    push,
-                ) {
+                match ch.descend(step, level, &mut tf, stack, &mut sp) {
                     Some(next) => node = next,
                     None => break,
                 }
