@@ -1,4 +1,4 @@
-//! The shared renderer's own cost per frame (issues 3 and 4): everything `render::render`
+//! The shared renderer's own cost per frame: everything `render::render`
 //! does besides traversal — ray generation, bounds and clip intervals, per-ray bookkeeping,
 //! shading, compositing and writing the frame.
 //!

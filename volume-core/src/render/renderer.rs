@@ -17,12 +17,13 @@
 //! regions, keeps a clip interval, [`super::clip`]) get a per-ray state; the tile is painted
 //! with the background first and only those samples are composited over it. Then the tile runs
 //! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
-//! current interval, all together through `IsoScene::first_hit_packet` (the first round's
+//! current interval, all together through [`IsoScene::first_hit_packet_prepared`] (the first round's
 //! packet is built while the rays are generated). A hit is shaded and composited front to
 //! back; an opaque hit (or the layer limit) ends the ray, a transparent one re-shoots the
 //! same ray with the minimum distance just past the hit (thesis seed 004 §8.6, "transparent
 //! depth peeling": the packet is re-used with a per-ray minimum distance). A miss moves the
-//! ray to its next kept interval. Shadow rays (`IsoScene::occluded`) are cast one by one.
+//! ray to its next kept interval. Shadow rays ([`IsoScene::occluded_prepared`]) are cast one by
+//! one. The isovalues are prepared once per call ([`IsoScene::prepare`]).
 //!
 //! Statistics and shadows are compile-time parameters, so when they are off their code is not
 //! in the loop at all. Per-tile buffers live in a per-thread scratch that is reused: nothing
