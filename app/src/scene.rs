@@ -55,10 +55,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use formats::mesh::{LoadedMesh, MeshSeries, StepData};
 use volume_core::RectilinearVolume;
-use volume_core::grid_scene::{AnyGridScene, SceneVisitor};
+use volume_core::grid::{AnyGridScene, StepSwitch};
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::ooc::{AnyOocVolume, OocOptions};
+use volume_core::render::SceneVisitor;
 use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, render};
 use volume_core::series::TimeSeries;
 use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
@@ -376,12 +377,14 @@ impl AnyScene {
         }
     }
 
-    /// Switches to another time step: a refit, not a rebuild.
-    pub fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
+    /// Switches to another time step: a refit, unless a grid step changes dims or voxel
+    /// type. `None` when nothing changed (the step was current, or there are no steps).
+    pub fn set_step(&mut self, step: usize) -> anyhow::Result<Option<StepSwitch>> {
         match self {
             AnyScene::Grid(g) => g.set_step(step),
-            AnyScene::Tet(t) => t.set_step(step),
-            AnyScene::Ooc(o) => check_step(step, 1, &o.path),
+            // Meshes always refit (their step keeps the connectivity).
+            AnyScene::Tet(t) => t.set_step(step).map(|()| Some(StepSwitch::Refit)),
+            AnyScene::Ooc(o) => check_step(step, 1, &o.path).map(|()| None),
         }
     }
 
@@ -572,22 +575,23 @@ impl GridData {
         self.series.as_ref()
     }
 
-    fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
+    /// `None` when the scene already holds `step`.
+    fn set_step(&mut self, step: usize) -> anyhow::Result<Option<StepSwitch>> {
         let Some(series) = &self.series else {
-            return check_step(step, 1, &self.path);
+            return check_step(step, 1, &self.path).map(|()| None);
         };
         check_step(step, series.step_count(), &self.path)?;
         if step == self.step {
-            return Ok(());
+            return Ok(None);
         }
         let v = series
             .step(step)
             .with_context(|| format!("loading time step {step} of {}", self.path.display()))?;
-        self.scene.update_volume(&v);
+        let switch = self.scene.update_volume(&v);
         self.value_range = v.value_stats().finite_range;
         self.volume = v;
         self.step = step;
-        Ok(())
+        Ok(Some(switch))
     }
 }
 

@@ -8,7 +8,7 @@ use common::{fails, ok};
 
 use std::path::Path;
 
-use volume_core::grid_scene::AnyGridScene;
+use volume_core::grid::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::intersect::accuracy::{extreme_suite, trace_rays};
 use volume_core::kdtree::KdTreeConfig;

@@ -870,9 +870,10 @@ mod tests {
     /// File -> loader -> OocScene at the finest level equals the in-core GridScene.
     #[test]
     fn rendering_from_the_file_equals_in_core() {
-        use volume_core::grid_scene::{AnyGridScene, SceneVisitor};
+        use volume_core::grid::AnyGridScene;
         use volume_core::intersect::Intersector;
         use volume_core::math::Ray;
+        use volume_core::render::SceneVisitor;
         use volume_core::render::{Hit, IsoScene, NoStats};
 
         struct Trace(Vec<Ray>, [f32; 1]);

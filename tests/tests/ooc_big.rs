@@ -26,10 +26,10 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use data_samples::sparse_blobs::{BIG_DIMS, Blob, big_test_blobs, write_sparse_nrrd};
-use volume_core::grid_scene::SceneVisitor;
 use volume_core::intersect::Intersector;
 use volume_core::math::Ray;
 use volume_core::ooc::{LoadProgress, OocOptions};
+use volume_core::render::SceneVisitor;
 use volume_core::render::{
     Camera, Hit, IsoScene, NoStats, RenderSettings, Surface, render as render_frame,
 };

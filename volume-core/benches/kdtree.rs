@@ -29,7 +29,7 @@ use std::time::Instant;
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use rayon::prelude::*;
-use volume_core::grid_scene::{GridScene, normal_at};
+use volume_core::grid::{GridScene, normal_at};
 use volume_core::intersect::methods::Exact;
 use volume_core::intersect::{CellHit, Intersector, IsoSet, LocalRay};
 use volume_core::kdtree::{KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible};

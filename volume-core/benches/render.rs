@@ -1,4 +1,4 @@
-//! The shared renderer's own cost per frame (issues 3 and 4): everything `render::render`
+//! The shared renderer's own cost per frame: everything `render::render`
 //! does besides traversal — ray generation, bounds and clip intervals, per-ray bookkeeping,
 //! shading, compositing and writing the frame.
 //!
@@ -32,20 +32,31 @@ use volume_core::render::{Camera, Frame, Hit, IsoScene, RenderSettings, Stats, S
 struct Culled(Aabb);
 
 impl IsoScene for Culled {
+    type Isovalues = ();
+
+    fn prepare(&self, _: &[f32]) {}
+
     fn world_bounds(&self) -> Aabb {
         self.0
     }
 
-    fn first_hit<S: Stats>(&self, _: &Ray, _: f32, _: f32, _: &[f32], _: &mut S) -> Option<Hit> {
+    fn first_hit_prepared<S: Stats>(
+        &self,
+        _: &Ray,
+        _: f32,
+        _: f32,
+        (): &(),
+        _: &mut S,
+    ) -> Option<Hit> {
         None
     }
 
-    fn first_hit_packet<S: Stats>(
+    fn first_hit_packet_prepared<S: Stats>(
         &self,
         rays: &[Ray],
         _: &[f32],
         _: &[f32],
-        _: &[f32],
+        (): &(),
         out: &mut [Option<Hit>],
         _: &mut S,
     ) {

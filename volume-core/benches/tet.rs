@@ -1,4 +1,4 @@
-//! Tetrahedral-mesh benchmarks (issue 4, thesis 004 §8.7): BIH vs SAH build (Table 8.1),
+//! Tetrahedral-mesh benchmarks (thesis seed 004 §8.7): BIH vs SAH build (Table 8.1),
 //! refit of ~1 M tets (§8.5.2), 16×16 vs 2×2 packets (Table 8.4) and 1024² frames through
 //! the shared renderer (one isosurface, diffuse shading).
 //!
@@ -150,7 +150,7 @@ fn settings(iso: f32, side: u32, packets: bool, stats: bool) -> RenderSettings {
         width: side,
         height: side,
         surfaces: vec![Surface::new(iso, [0.8, 0.7, 0.5])],
-        // Diffuse shading (no highlight), headlight, no shadows: the issue's target setup.
+        // Diffuse shading (no highlight), headlight, no shadows: the target setup of docs/benchmarks.md.
         light: Light {
             specular: 0.0,
             ..Light::default()

@@ -4,6 +4,10 @@
 //! `u8` (its min/max kd-tree too), which is what keeps memory small. Generic code is written
 //! against [`Voxel`]; code that holds a volume of unknown type matches on
 //! [`crate::VoxelData`] once, outside any hot loop, with [`crate::dispatch_voxels!`].
+//!
+//! The eight types are listed once, in [`for_each_voxel_type!`]: the per-type enums
+//! ([`voxel_enum!`]) and the matches over them ([`match_voxel!`], [`match_voxel_type!`]) are
+//! generated from that list.
 
 use std::fmt::Debug;
 
@@ -180,6 +184,103 @@ impl Voxel for f64 {
     fn swap_bytes(self) -> Self {
         f64::from_bits(self.to_bits().swap_bytes())
     }
+}
+
+/// The one list of voxel types: calls `$callback! { $args ; U8 u8, I8 i8, ... }` with each
+/// [`VoxelType`] variant next to its Rust type. Every per-type enum ([`crate::VoxelData`],
+/// [`crate::grid::AnyGridScene`], [`crate::ooc::AnyOocVolume`]) and every match over voxel
+/// types is generated from it, through [`voxel_enum!`], [`match_voxel!`] and
+/// [`match_voxel_type!`].
+#[macro_export]
+macro_rules! for_each_voxel_type {
+    ($($callback:ident)::+, $($args:tt)*) => {
+        $($callback)::+! {
+            $($args)* ;
+            U8 u8, I8 i8, U16 u16, I16 i16, U32 u32, I32 i32, F32 f32, F64 f64
+        }
+    };
+}
+
+/// Declares an enum with one variant per voxel type, each holding `$inner<T>` (variants
+/// named as in [`VoxelType`]), with `voxel_type()` and `From<$inner<T>>` for every type.
+/// Match it with [`match_voxel!`].
+#[macro_export]
+macro_rules! voxel_enum {
+    ($(#[$meta:meta])* $vis:vis enum $name:ident($inner:ident)) => {
+        $crate::for_each_voxel_type!($crate::voxel_enum, @declare $(#[$meta])* $vis enum $name($inner));
+    };
+    (@declare $(#[$meta:meta])* $vis:vis enum $name:ident($inner:ident); $($tag:ident $t:ty),*) => {
+        $(#[$meta])*
+        $vis enum $name {
+            $($tag($inner<$t>),)*
+        }
+
+        impl $name {
+            /// The voxel type of the variant.
+            pub fn voxel_type(&self) -> $crate::VoxelType {
+                match self {
+                    $(Self::$tag(_) => $crate::VoxelType::$tag,)*
+                }
+            }
+        }
+
+        $(
+            impl From<$inner<$t>> for $name {
+                fn from(x: $inner<$t>) -> Self {
+                    Self::$tag(x)
+                }
+            }
+        )*
+    };
+}
+
+/// Runs `$body` with `$x` bound to the typed value inside `$value`, an enum made by
+/// [`voxel_enum!`] (`$enum` is its type). Match once, outside any hot loop, and run generic
+/// code on the typed value. The second form matches two such enums together
+/// (`match_voxel!(A, a, x; B, b, y => same_type(x, y); else different())`).
+#[macro_export]
+macro_rules! match_voxel {
+    (@arms ($enum:ty) ($value:expr) $x:ident ($body:expr); $($tag:ident $t:ty),*) => {{
+        type VoxelEnumOfMatch = $enum;
+        match $value {
+            $(VoxelEnumOfMatch::$tag($x) => $body,)*
+        }
+    }};
+    (@pairs ($e1:ty) ($v1:expr) $x1:ident ($e2:ty) ($v2:expr) $x2:ident ($body:expr) ($other:expr);
+        $($tag:ident $t:ty),*) => {{
+        type FirstVoxelEnum = $e1;
+        type SecondVoxelEnum = $e2;
+        match ($v1, $v2) {
+            $((FirstVoxelEnum::$tag($x1), SecondVoxelEnum::$tag($x2)) => $body,)*
+            _ => $other,
+        }
+    }};
+    ($enum:ty, $value:expr, $x:ident => $body:expr) => {
+        $crate::for_each_voxel_type!($crate::match_voxel, @arms ($enum) ($value) $x ($body))
+    };
+    // Two enums at once: `$body` where both hold the same voxel type, else `$other`.
+    ($e1:ty, $v1:expr, $x1:ident; $e2:ty, $v2:expr, $x2:ident => $body:expr; else $other:expr) => {
+        $crate::for_each_voxel_type!(
+            $crate::match_voxel, @pairs ($e1) ($v1) $x1 ($e2) ($v2) $x2 ($body) ($other)
+        )
+    };
+}
+
+/// Runs `$body` with the type name `$t` bound to the Rust type of the [`VoxelType`]
+/// `$voxel_type` (`match_voxel_type!(ty, T => VoxelBuffer::<T>::from_vec(..).into())`).
+#[macro_export]
+macro_rules! match_voxel_type {
+    ($voxel_type:expr, $t:ident => $body:expr) => {
+        $crate::for_each_voxel_type!($crate::match_voxel_type, @arms ($voxel_type) $t ($body))
+    };
+    (@arms ($voxel_type:expr) $t:ident ($body:expr); $($tag:ident $ty:ty),*) => {
+        match $voxel_type {
+            $($crate::VoxelType::$tag => {
+                type $t = $ty;
+                $body
+            })*
+        }
+    };
 }
 
 #[cfg(test)]

@@ -66,7 +66,7 @@ fn exact_intersector_has_no_missed_or_false_hits_on_the_extreme_suite() {
 /// the two traces.
 #[test]
 fn per_ray_scores_agree_with_compare() {
-    use volume_core::grid_scene::AnyGridScene;
+    use volume_core::grid::AnyGridScene;
     use volume_core::intersect::accuracy::{RayOutcome, compare, extreme_suite, score, trace_rays};
     let suite = extreme_suite();
     assert!(suite.len() >= 20, "{} cases", suite.len());

@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use proptest::prelude::*;
-use volume_core::grid_scene::GridScene;
+use volume_core::grid::GridScene;
 use volume_core::intersect::{Intersector, IsoSet, corner_range, methods::Exact};
 use volume_core::kdtree::{KdTree, KdTreeConfig};
 use volume_core::math::Ray;

@@ -21,7 +21,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::{Context as _, bail};
 use data_samples::Generator;
 use serde::Serialize;
-use volume_core::grid_scene::AnyGridScene;
+use volume_core::grid::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::intersect::accuracy::{self, AccuracyReport, RayOutcome, Traced};
 use volume_core::render::{Camera, IsoScene, RenderSettings, Surface};

@@ -38,7 +38,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, bail};
 use serde::Serialize;
-use volume_core::grid_scene::AnyGridScene;
+use volume_core::grid::AnyGridScene;
 use volume_core::intersect::{Intersector, accuracy};
 use volume_core::math::Ray;
 use volume_core::ooc::OocOptions;

@@ -19,7 +19,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::{Context as _, bail};
 use glam::Vec3;
-use volume_core::grid_scene::AnyGridScene;
+use volume_core::grid::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::render::{

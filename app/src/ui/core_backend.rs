@@ -282,18 +282,10 @@ impl PreparedScene for CorePrepared {
         if s.step() == step {
             return Ok(StepSwitch::Unchanged);
         }
-        let before = s
-            .as_grid()
-            .map(|g| (g.scene().dims(), g.scene().voxel_type()));
-        s.set_step(step).map_err(|e| format!("{e:#}"))?;
-        // `update_volume` refits when dims and voxel type stay (a series checks both).
-        let after = s
-            .as_grid()
-            .map(|g| (g.scene().dims(), g.scene().voxel_type()));
-        Ok(if before == after {
-            StepSwitch::Refit
-        } else {
-            StepSwitch::Rebuilt
+        Ok(match s.set_step(step).map_err(|e| format!("{e:#}"))? {
+            Some(volume_core::grid::StepSwitch::Refit) => StepSwitch::Refit,
+            Some(volume_core::grid::StepSwitch::Rebuild) => StepSwitch::Rebuilt,
+            None => StepSwitch::Unchanged,
         })
     }
 

@@ -25,7 +25,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use crate::grid_scene::{AnyGridScene, GridScene};
+use crate::grid::{AnyGridScene, GridScene};
 use crate::intersect::{CellHit, Intersector, IsoSet};
 use crate::kdtree::KdTreeConfig;
 use crate::math::Ray;

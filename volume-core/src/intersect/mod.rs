@@ -1,6 +1,6 @@
 //! Ray–isosurface intersection inside trilinear cells (thesis seed 004 §6.1.1, §6.5.2,
 //! §7.2.2), shared by the kd-tree ([`crate::kdtree`]) and its brute-force twin
-//! ([`crate::dda`]).
+//! ([`crate::grid::dda`]).
 //!
 //! - [`frame`]: world rays into traversal (cell) units; cell boxes; world normals.
 //! - [`methods`]: the cubic along a cell segment and the five intersectors.
@@ -247,7 +247,8 @@ pub trait CellIntersector: Copy + Send + Sync + 'static {
 /// set then lives on the heap).
 pub const INLINE_ISOVALUES: usize = 16;
 
-/// Active isovalues converted once per ray into the voxel type's comparable range.
+/// Active isovalues converted into the voxel type's comparable range, once per frame
+/// ([`crate::render::IsoScene::prepare`]).
 ///
 /// Iso `c` lies in a node range `[min, max]` iff `min <= lo && max >= hi`, with
 /// `lo = floor(c)`, `hi = ceil(c)` for integer types (exact: integer ranges contain the

@@ -33,6 +33,7 @@
 //! of isovalues in one pass.
 
 mod packet;
+pub(crate) mod step;
 
 pub use packet::{PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack};
 
@@ -46,6 +47,7 @@ use crate::intersect::{
 };
 use crate::render::Stats;
 use crate::voxel::Voxel;
+use step::{Step, ray_step, take_step};
 
 /// Build options.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,13 +106,14 @@ pub struct KdTree<T: Voxel> {
     build_time: Duration,
 }
 
-/// One pending far child on the traversal stack.
+/// One pending far child on a traversal stack; `L` is a ray's `t` (`f32`) or a packet's
+/// lanes.
 #[derive(Debug, Clone, Copy, Default)]
-pub(crate) struct Entry {
+pub(crate) struct Entry<L> {
     pub node: [u32; 3],
     pub level: u32,
-    pub t_near: f32,
-    pub t_far: f32,
+    pub t_near: L,
+    pub t_far: L,
 }
 
 /// Stack entries kept inline (trees deeper than this fall back to a heap stack).
@@ -421,7 +424,7 @@ impl<T: Voxel> KdTree<T> {
         isos: &IsoSet<T>,
         intersector: C,
         stats: &mut S,
-        stack: &mut [Entry],
+        stack: &mut [Entry<f32>],
     ) -> Option<CellHit> {
         let mut sp = 0usize;
         let mut best: Option<CellHit> = None;
@@ -454,95 +457,14 @@ impl<T: Voxel> KdTree<T> {
                     }
                     break;
                 }
-                let lv = &self.levels[level];
                 stats.node();
-                let a = lv.axis;
-                // One-hot axis arithmetic keeps the node in registers (indexing a `[u32; 3]`
-                // by `a` and reading it back whole stalls store forwarding).
-                let u = lv.unit;
-                let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
-                let split = self.splits[lv.split_offset + na as usize];
-                let left = [node[0] << u[0], node[1] << u[1], node[2] << u[2]];
-                let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
-                let right_real = 2 * na + 1 < lv.child_count;
+                let ch = self.children(level, node, isos);
                 level += 1;
-                self.prefetch_grandchildren(level, left);
-                // A child is live if it is real and (on a stored level) its range holds an
-                // isovalue; siblings are adjacent in the level array.
-                let (left_live, right_live) = if level < self.stored {
-                    let i = lv.child_offset + addr(lv.child_stride, left);
-                    let l = self.ranges[i];
-                    let live_l = isos.any_in(l[0], l[1]);
-                    let live_r = right_real && {
-                        let r = self.ranges[i + 1];
-                        isos.any_in(r[0], r[1])
-                    };
-                    (live_l, live_r)
-                } else {
-                    (true, right_real)
-                };
-                let o = ray.origin[a];
-                let d = ray.dir[a];
-                if d == 0.0 {
-                    if o < split {
-                        if !left_live {
-                            break;
-                        }
-                        node = left;
-                    } else if o > split {
-                        if !right_live {
-                            break;
-                        }
-                        node = right;
-                    } else {
-                        // In the split plane: both sides (seed 000 §5).
-                        if right_live {
-                            stack[sp] = Entry {
-                                node: right,
-                                level: level as u32,
-                                t_near: ta,
-                                t_far: tb,
-                            };
-                            sp += 1;
-                        }
-                        if !left_live {
-                            break;
-                        }
-                        node = left;
-                    }
-                    continue;
-                }
-                let ts = (split - o) * ray.inv_dir[a];
-                let (near, far, near_live, far_live) = if d > 0.0 {
-                    (left, right, left_live, right_live)
-                } else {
-                    (right, left, right_live, left_live)
-                };
-                if ts > tb {
-                    if !near_live {
-                        break;
-                    }
-                    node = near;
-                } else if ts < ta {
-                    if !far_live {
-                        break;
-                    }
-                    node = far;
-                } else {
-                    if far_live {
-                        stack[sp] = Entry {
-                            node: far,
-                            level: level as u32,
-                            t_near: ts,
-                            t_far: tb,
-                        };
-                        sp += 1;
-                    }
-                    if !near_live {
-                        break;
-                    }
-                    node = near;
-                    tb = ts;
+                let a = ch.axis;
+                let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], ch.split, ta, tb);
+                match ch.descend(step, level, &mut tb, stack, &mut sp) {
+                    Some(next) => node = next,
+                    None => break,
                 }
             }
             // Pop the next entry that can still hold a nearer hit. Entries pushed for a
@@ -568,7 +490,91 @@ impl<T: Voxel> KdTree<T> {
     }
 }
 
+/// The children of a node, as a traversal step reads them ([`KdTree::children`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Children {
+    pub axis: usize,
+    /// Split position (traversal units).
+    pub split: f32,
+    pub left: [u32; 3],
+    pub right: [u32; 3],
+    /// A child is live if it is real and (on a stored level) its range holds an isovalue.
+    pub left_live: bool,
+    pub right_live: bool,
+}
+
+impl Children {
+    /// Applies `step` ([`take_step`]) for the in-core traversals: a live far child entered
+    /// later is pushed onto `stack` (at `*sp`, for `level`), and the child to descend into is
+    /// returned (`None`: pop).
+    #[inline(always)]
+    pub(crate) fn descend<L: Copy>(
+        &self,
+        step: Step<L>,
+        level: usize,
+        t_far: &mut L,
+        stack: &mut [Entry<L>],
+        sp: &mut usize,
+    ) -> Option<[u32; 3]> {
+        let push = |far, t_near, t_far| {
+            stack[*sp] = Entry {
+                node: far,
+                level: level as u32,
+                t_near,
+                t_far,
+            };
+            *sp += 1;
+        };
+        take_step(
+            step,
+            self.left,
+            self.right,
+            self.left_live,
+            self.right_live,
+            t_far,
+            push,
+        )
+    }
+}
+
 impl<T: Voxel> KdTree<T> {
+    /// The children of `node` at inner `level`: split, addresses and liveness (siblings are
+    /// adjacent in the level array, so both ranges come from one cache line); also starts
+    /// loading the grandchildren.
+    #[inline(always)]
+    pub(crate) fn children(&self, level: usize, node: [u32; 3], isos: &IsoSet<T>) -> Children {
+        let lv = &self.levels[level];
+        // One-hot axis arithmetic keeps the node in registers (indexing a `[u32; 3]`
+        // by `a` and reading it back whole stalls store forwarding).
+        let u = lv.unit;
+        let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
+        let split = self.splits[lv.split_offset + na as usize];
+        let left = [node[0] << u[0], node[1] << u[1], node[2] << u[2]];
+        let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
+        let right_real = 2 * na + 1 < lv.child_count;
+        self.prefetch_grandchildren(level + 1, left);
+        let (left_live, right_live) = if level + 1 < self.stored {
+            let i = lv.child_offset + addr(lv.child_stride, left);
+            let l = self.ranges[i];
+            let live_l = isos.any_in(l[0], l[1]);
+            let live_r = right_real && {
+                let r = self.ranges[i + 1];
+                isos.any_in(r[0], r[1])
+            };
+            (live_l, live_r)
+        } else {
+            (true, right_real)
+        };
+        Children {
+            axis: lv.axis,
+            split,
+            left,
+            right,
+            left_live,
+            right_live,
+        }
+    }
+
     /// Starts loading the child pairs of `left` and `right` (nodes at `level`), which the
     /// step after next reads, while this step's pair is still on its way: on the deep
     /// stored levels these pairs miss the cache (the hottest load of the traversal before).

@@ -10,12 +10,13 @@
 //! once per packet; slab, segment, cubic and early out in `f32x8` lanes with the scalar
 //! operations, [`crate::intersect::packet`]), so packet results equal single-ray results
 //! (tested). Packets need every ray to share the sign of each direction component and have
-//! no zero component; [`crate::grid_scene::GridScene`] splits other groups into packets of 8
+//! no zero component; [`crate::grid::GridScene`] splits other groups into packets of 8
 //! or traces them one by one.
 
 use wide::f32x8;
 
-use super::{INLINE_STACK, KdTree, addr};
+use super::step::{Step, Visit};
+use super::{Entry, INLINE_STACK, KdTree};
 use crate::intersect::{
     CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, RaysX8, TraversalFrame,
     intersect_prepared_cell, intersect_prepared_cell_x8,
@@ -66,24 +67,7 @@ fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
     std::array::from_fn(|h| f(a[h], b[h]))
 }
 
-#[derive(Clone, Copy)]
-struct PacketEntry {
-    node: [u32; 3],
-    level: u32,
-    t_near: Lanes,
-    t_far: Lanes,
-}
-
-impl Default for PacketEntry {
-    fn default() -> Self {
-        Self {
-            node: [0; 3],
-            level: 0,
-            t_near: splat(0.0),
-            t_far: splat(0.0),
-        }
-    }
-}
+type PacketEntry = Entry<Lanes>;
 
 /// The packet traversal stack, reusable across packets (zeroing 64 entries, 10 KB, per packet
 /// would cost more than a short traversal). [`with_packet_stack`] lends each thread one.
@@ -297,62 +281,31 @@ impl<T: Voxel> KdTree<T> {
                     });
                     break;
                 }
-                let lv = &self.levels[level];
                 stats.node();
-                let a = lv.axis;
-                let u = lv.unit;
-                let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
-                let split = self.splits[lv.split_offset + na as usize];
-                let left = [node[0] << u[0], node[1] << u[1], node[2] << u[2]];
-                let right = [left[0] + u[0], left[1] + u[1], left[2] + u[2]];
-                let right_real = 2 * na + 1 < lv.child_count;
+                let ch = self.children(level, node, isos);
                 level += 1;
-                self.prefetch_grandchildren(level, left);
-                let (left_live, right_live) = if level < self.stored {
-                    let i = lv.child_offset + addr(lv.child_stride, left);
-                    let l = self.ranges[i];
-                    let live_l = isos.any_in(l[0], l[1]);
-                    let live_r = right_real && {
-                        let r = self.ranges[i + 1];
-                        isos.any_in(r[0], r[1])
-                    };
-                    (live_l, live_r)
-                } else {
-                    (true, right_real)
-                };
-                let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(split) - o) * v);
-                let (near, far, near_real, far_real) = if dir_pos[a] {
-                    (left, right, left_live, right_live)
-                } else {
-                    (right, left, right_live, left_live)
-                };
+                let a = ch.axis;
+                let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(ch.split) - o) * v);
+                // The packet enters one child when every active ray does (module docs).
                 let beyond = bits(&ts, &tf, f32x8::simd_gt);
                 let before = bits(&ts, &tn, f32x8::simd_lt);
-                if beyond & active == active {
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
+                let visit = if beyond & active == active {
+                    Visit::Near
                 } else if before & active == active {
-                    if !far_real {
-                        break;
-                    }
-                    node = far;
+                    Visit::Far
                 } else {
-                    if far_real {
-                        stack[sp] = PacketEntry {
-                            node: far,
-                            level: level as u32,
-                            t_near: map2(&tn, &ts, f32x8::max),
-                            t_far: tf,
-                        };
-                        sp += 1;
+                    Visit::Both {
+                        near_t_far: map2(&tf, &ts, f32x8::min),
+                        far_t_near: map2(&tn, &ts, f32x8::max),
                     }
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
-                    tf = map2(&tf, &ts, f32x8::min);
+                };
+                let step = Step {
+                    near_is_left: dir_pos[a],
+                    visit,
+                };
+                match ch.descend(step, level, &mut tf, stack, &mut sp) {
+                    Some(next) => node = next,
+                    None => break,
                 }
             }
             loop {

@@ -24,7 +24,7 @@
 //! the coarse levels from memory. `progress` counts input voxels read over both passes
 //! (`2 × voxels` in all).
 //!
-//! Cost per input voxel (issue 5 asks for ≥ 100 MB/s on 2 cores): integer volumes halve
+//! Cost per input voxel (target: ≥ 100 MB/s on 2 cores, docs/benchmarks.md): integer volumes halve
 //! separably in exact arithmetic ([`halve_plane_exact`]); a treelet's ranges come from
 //! separable cell ranges reduced bottom-up over its heap, and node codes of ≤ 16-bit types
 //! from a table ([`NodeCodes`]). Each fast path has a brute-force twin in the tests and

@@ -21,9 +21,9 @@
 //! ranges read from the current treelet: at the bottom of a treelet it continues in the
 //! child treelet if its level is published and the treelet resident, and otherwise
 //! intersects the cell of the current level's LOD voxels with the shared cell intersector
-//! and normal code ([`intersect_cell`], [`crate::grid_scene::make_hit`]) through a
+//! and normal code ([`intersect_cell`], [`crate::grid::hit`]) through a
 //! treelet-local [`TraversalFrame`]. At the finest level the cells, voxels and positions are
-//! the in-core ones, so hits equal [`crate::grid_scene::GridScene`]'s; quantized ranges only
+//! the in-core ones, so hits equal [`crate::grid::GridScene`]'s; quantized ranges only
 //! add visited nodes.
 
 use std::collections::HashMap;
@@ -36,11 +36,12 @@ use super::OocError;
 use super::layout::linear_index;
 use super::quantize::CodeQuery;
 use super::treelet::{OocMeta, TreeletRecord, TreeletStorage};
-use crate::grid_scene::make_hit;
+use crate::grid::hit::{CellBlock, CellTrace, first_hit_with};
 use crate::intersect::{
     CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
     intersect_cell,
 };
+use crate::kdtree::step::{ray_step, take_step};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::voxel::Voxel;
@@ -742,6 +743,42 @@ impl<T: Voxel> Drop for OocVolume<T> {
     }
 }
 
+/// The isovalues of one frame as the out-of-core traversal reads them, prepared once per
+/// frame ([`IsoScene::prepare`]): in the voxel type, and as quantized code queries for the
+/// treelet node ranges (seed 004 §7.8.1).
+#[derive(Debug, Clone)]
+pub struct OocIsovalues<T: Voxel> {
+    set: IsoSet<T>,
+    queries: [CodeQuery; INLINE_ISOVALUES],
+    count: usize,
+    /// More queries than fit: every node passes (conservative).
+    all: bool,
+}
+
+impl<T: Voxel> OocIsovalues<T> {
+    fn new(meta: &OocMeta, isovalues: &[f32]) -> Self {
+        let mut queries = [CodeQuery { a: 0, b: 0 }; INLINE_ISOVALUES];
+        let mut count = 0;
+        let mut all = false;
+        for &c in isovalues {
+            if let Some(q) = meta.quantizer.query(c) {
+                if count == INLINE_ISOVALUES {
+                    all = true;
+                    break;
+                }
+                queries[count] = q;
+                count += 1;
+            }
+        }
+        Self {
+            set: IsoSet::new(isovalues),
+            queries,
+            count,
+            all,
+        }
+    }
+}
+
 /// One frame's view of an [`OocVolume`]: immutable, shared by all render threads.
 pub struct OocScene<T: Voxel> {
     shared: Arc<Shared<T>>,
@@ -794,76 +831,51 @@ impl<T: Voxel> OocScene<T> {
         self.snap.resident_bytes
     }
 
-    /// [`IsoScene::first_hit`] with a static intersector.
-    pub fn first_hit_with<C: CellIntersector, S: Stats>(
+    /// The prepared isovalues as the traversal reads them: an empty set or no quantized
+    /// query means no hit.
+    #[inline]
+    fn cell_hit_in<C: CellIntersector, S: Stats>(
         &self,
-        ray: &Ray,
+        ray: &LocalRay,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &OocIsovalues<T>,
         intersector: C,
         stats: &mut S,
-    ) -> Option<Hit> {
-        stats.ray();
-        let frame = &self.shared.frame;
-        let local = frame.to_local(ray);
-        let isos = IsoSet::<T>::new(isovalues);
-        if isos.is_empty() {
+    ) -> Option<(CellHit, &ResidentTreelet<T>)> {
+        if isos.set.is_empty() || isos.count == 0 {
             return None;
         }
-        let (t0, t1) = frame.clip(&local, t_min, t_max)?;
-        let mut queries = [CodeQuery { a: 0, b: 0 }; INLINE_ISOVALUES];
-        let mut nq = 0;
-        let mut all = false;
-        for &c in isovalues {
-            if let Some(q) = self.shared.meta.quantizer.query(c) {
-                if nq == INLINE_ISOVALUES {
-                    all = true;
-                    break;
-                }
-                queries[nq] = q;
-                nq += 1;
-            }
-        }
-        if nq == 0 {
-            return None;
-        }
+        let (t0, t1) = self.shared.frame.clip(ray, t_min, t_max)?;
+        let queries = &isos.queries[..isos.count];
         let depth = self.shared.meta.layout.depth();
-        let (h, t) = if depth < INLINE_STACK {
+        if depth < INLINE_STACK {
             let mut stack = [Entry::default(); INLINE_STACK];
             self.traverse(
-                &local,
+                ray,
                 t0,
                 t1,
-                &isos,
-                &queries[..nq],
-                all,
+                &isos.set,
+                queries,
+                isos.all,
                 intersector,
                 stats,
                 &mut stack,
-            )?
+            )
         } else {
             let mut stack = vec![Entry::default(); depth + 1];
             self.traverse(
-                &local,
+                ray,
                 t0,
                 t1,
-                &isos,
-                &queries[..nq],
-                all,
+                &isos.set,
+                queries,
+                isos.all,
                 intersector,
                 stats,
                 &mut stack,
-            )?
-        };
-        Some(make_hit(
-            &t.frame,
-            &t.rec.voxels,
-            t.rec.voxel_dims,
-            &local,
-            ray,
-            h,
-        ))
+            )
+        }
     }
 
     #[inline(always)]
@@ -958,67 +970,27 @@ impl<T: Voxel> OocScene<T> {
                 let right_real = u64::from(right[a]) < shapes[level + 1].count[a];
                 let (h_left, h_right) = (2 * h + 1, 2 * h + 2);
                 level += 1;
-                let o = ray.origin[a];
-                let d = ray.dir[a];
-                let entry = |node: [u32; 3], h: usize, t_near: f32, t_far: f32| Entry {
-                    node,
-                    level: level as u32,
-                    h: h as u32,
-                    tl: tl as u32,
-                    ti,
-                    t_near,
-                    t_far,
+                let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], split, ta, tb);
+                // The left child is always real; culling happens when a node is entered.
+                let push = |(far, h_far): ([u32; 3], usize), t_near, t_far| {
+                    stack[sp] = Entry {
+                        node: far,
+                        level: level as u32,
+                        h: h_far as u32,
+                        tl: tl as u32,
+                        ti,
+                        t_near,
+                        t_far,
+                    };
+                    sp += 1;
                 };
-                if d == 0.0 {
-                    if o < split {
-                        node = left;
-                        h = h_left;
-                    } else if o > split {
-                        if !right_real {
-                            break;
-                        }
-                        node = right;
-                        h = h_right;
-                    } else {
-                        // In the split plane: both sides (seed 000 §5).
-                        if right_real {
-                            stack[sp] = entry(right, h_right, ta, tb);
-                            sp += 1;
-                        }
-                        node = left;
-                        h = h_left;
+                let (l, r) = ((left, h_left), (right, h_right));
+                match take_step(step, l, r, true, right_real, &mut tb, push) {
+                    Some((next, h_next)) => {
+                        node = next;
+                        h = h_next;
                     }
-                    continue;
-                }
-                let ts = (split - o) * ray.inv_dir[a];
-                let (near, far, h_near, h_far, near_real, far_real) = if d > 0.0 {
-                    (left, right, h_left, h_right, true, right_real)
-                } else {
-                    (right, left, h_right, h_left, right_real, true)
-                };
-                if ts > tb {
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
-                    h = h_near;
-                } else if ts < ta {
-                    if !far_real {
-                        break;
-                    }
-                    node = far;
-                    h = h_far;
-                } else {
-                    if far_real {
-                        stack[sp] = entry(far, h_far, ts, tb);
-                        sp += 1;
-                    }
-                    if !near_real {
-                        break;
-                    }
-                    node = near;
-                    h = h_near;
-                    tb = ts;
+                    None => break,
                 }
             }
             loop {
@@ -1048,66 +1020,76 @@ impl<T: Voxel> OocScene<T> {
     }
 }
 
+impl<T: Voxel> CellTrace<T> for OocScene<T> {
+    type Isovalues = OocIsovalues<T>;
+
+    fn frame(&self) -> &TraversalFrame {
+        &self.shared.frame
+    }
+
+    #[inline]
+    fn cell_hit<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &LocalRay,
+        t_min: f32,
+        t_max: f32,
+        isos: &OocIsovalues<T>,
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<(CellHit, CellBlock<'_, T>)> {
+        let (h, t) = self.cell_hit_in(ray, t_min, t_max, isos, intersector, stats)?;
+        let block = CellBlock {
+            frame: &t.frame,
+            voxels: &t.rec.voxels,
+            dims: t.rec.voxel_dims,
+        };
+        Some((h, block))
+    }
+}
+
 impl<T: Voxel> IsoScene for OocScene<T> {
+    type Isovalues = OocIsovalues<T>;
+
+    fn prepare(&self, isovalues: &[f32]) -> OocIsovalues<T> {
+        OocIsovalues::new(&self.shared.meta, isovalues)
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.shared.frame.world_bounds()
     }
 
     #[inline]
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &OocIsovalues<T>,
         stats: &mut S,
     ) -> Option<Hit> {
-        crate::dispatch_intersector!(self.intersector, c => self.first_hit_with(ray, t_min, t_max, isovalues, c, stats))
+        crate::dispatch_intersector!(self.intersector, c => first_hit_with(self, ray, t_min, t_max, isos, c, stats))
     }
 }
 
-/// An [`OocVolume`] of whichever voxel type the storage holds.
-#[derive(Debug)]
-pub enum AnyOocVolume {
-    U8(OocVolume<u8>),
-    I8(OocVolume<i8>),
-    U16(OocVolume<u16>),
-    I16(OocVolume<i16>),
-    U32(OocVolume<u32>),
-    I32(OocVolume<i32>),
-    F32(OocVolume<f32>),
-    F64(OocVolume<f64>),
+crate::voxel_enum! {
+    /// An [`OocVolume`] of whichever voxel type the storage holds.
+    #[derive(Debug)]
+    pub enum AnyOocVolume(OocVolume)
 }
 
+/// [`crate::match_voxel!`] for [`AnyOocVolume`].
 macro_rules! dispatch_ooc {
     ($v:expr, $s:ident => $body:expr) => {
-        match $v {
-            AnyOocVolume::U8($s) => $body,
-            AnyOocVolume::I8($s) => $body,
-            AnyOocVolume::U16($s) => $body,
-            AnyOocVolume::I16($s) => $body,
-            AnyOocVolume::U32($s) => $body,
-            AnyOocVolume::I32($s) => $body,
-            AnyOocVolume::F32($s) => $body,
-            AnyOocVolume::F64($s) => $body,
-        }
+        crate::match_voxel!(AnyOocVolume, $v, $s => $body)
     };
 }
 
 impl AnyOocVolume {
     /// Opens `storage` with the voxel type it records.
     pub fn open(storage: Arc<dyn TreeletStorage>, options: OocOptions) -> Result<Self, OocError> {
-        use crate::voxel::VoxelType as V;
-        Ok(match storage.meta().voxel_type {
-            V::U8 => Self::U8(OocVolume::open(storage, options)?),
-            V::I8 => Self::I8(OocVolume::open(storage, options)?),
-            V::U16 => Self::U16(OocVolume::open(storage, options)?),
-            V::I16 => Self::I16(OocVolume::open(storage, options)?),
-            V::U32 => Self::U32(OocVolume::open(storage, options)?),
-            V::I32 => Self::I32(OocVolume::open(storage, options)?),
-            V::F32 => Self::F32(OocVolume::open(storage, options)?),
-            V::F64 => Self::F64(OocVolume::open(storage, options)?),
-        })
+        Ok(crate::match_voxel_type!(storage.meta().voxel_type, V => {
+            OocVolume::<V>::open(storage, options)?.into()
+        }))
     }
 
     pub fn meta(&self) -> &OocMeta {
@@ -1159,8 +1141,8 @@ impl AnyOocVolume {
     }
 
     /// Hands this frame's typed [`OocScene`] to `visitor` (monomorphized rendering, as
-    /// [`crate::grid_scene::AnyGridScene::visit`]).
-    pub fn visit_scene<V: crate::grid_scene::SceneVisitor>(
+    /// [`crate::grid::AnyGridScene::visit`]).
+    pub fn visit_scene<V: crate::render::SceneVisitor>(
         &self,
         intersector: Intersector,
         visitor: V,
@@ -1189,7 +1171,7 @@ impl AnyOocVolume {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid_scene::GridScene;
+    use crate::grid::GridScene;
     use crate::kdtree::KdTreeConfig;
     use crate::ooc::build::build_treelets;
     use crate::ooc::layout::TreeletLayout;

@@ -105,16 +105,22 @@ impl SphereScene {
 }
 
 impl IsoScene for SphereScene {
+    type Isovalues = Vec<f32>;
+
+    fn prepare(&self, isovalues: &[f32]) -> Vec<f32> {
+        isovalues.to_vec()
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.bounds
     }
 
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         stats: &mut S,
     ) -> Option<Hit> {
         stats.ray();

@@ -2,7 +2,7 @@
 //!
 //! Pixel `(i, j)`, row 0 at the top, of a `W×H` image gets the ray through its centre:
 //! `u = (2(i+0.5)/W − 1)·tan(vfov/2)·W/H`, `v = (1 − 2(j+0.5)/H)·tan(vfov/2)`, direction
-//! `normalize(forward + u·right + v·up)` (issue 3, "Camera"). Directions are unit length, so
+//! `normalize(forward + u·right + v·up)`. Directions are unit length, so
 //! the ray parameter `t` is a world distance. Orthographic cameras use the same `u, v` with
 //! `tan(vfov/2)` replaced by `ortho_height/2` as offsets of the ray origin from the eye.
 //!
@@ -342,7 +342,7 @@ impl RayGen {
 mod tests {
     use super::*;
 
-    /// The issue's formula, evaluated independently in f64.
+    /// The module docs' formula, evaluated independently in f64.
     fn spec_dir(cam: &Camera, i: u32, j: u32, w: u32, h: u32) -> [f64; 3] {
         let e = cam.eye.as_dvec3();
         let f = (cam.target.as_dvec3() - e).normalize();

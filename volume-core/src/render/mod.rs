@@ -24,7 +24,7 @@ mod shade;
 
 pub use camera::{Camera, CameraError, Projection, RayGen};
 pub use renderer::{Frame, RayCounts, TILE, render, render_into};
-pub use scene::{CountStats, Hit, IsoScene, NoStats, Stats, TraversalCounts};
+pub use scene::{CountStats, Hit, IsoScene, NoStats, SceneVisitor, Stats, TraversalCounts};
 pub use settings::{
     ClipRegion, Keep, Light, LightKind, MAX_IMAGE_SIDE, RenderSettings, SettingsError, Surface,
 };

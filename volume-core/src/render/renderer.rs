@@ -17,12 +17,13 @@
 //! regions, keeps a clip interval, [`super::clip`]) get a per-ray state; the tile is painted
 //! with the background first and only those samples are composited over it. Then the tile runs
 //! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
-//! current interval, all together through `IsoScene::first_hit_packet` (the first round's
+//! current interval, all together through [`IsoScene::first_hit_packet_prepared`] (the first round's
 //! packet is built while the rays are generated). A hit is shaded and composited front to
 //! back; an opaque hit (or the layer limit) ends the ray, a transparent one re-shoots the
 //! same ray with the minimum distance just past the hit (thesis seed 004 §8.6, "transparent
 //! depth peeling": the packet is re-used with a per-ray minimum distance). A miss moves the
-//! ray to its next kept interval. Shadow rays (`IsoScene::occluded`) are cast one by one.
+//! ray to its next kept interval. Shadow rays ([`IsoScene::occluded_prepared`]) are cast one by
+//! one. The isovalues are prepared once per call ([`IsoScene::prepare`]).
 //!
 //! Statistics and shadows are compile-time parameters, so when they are off their code is not
 //! in the loop at all. Per-tile buffers live in a per-thread scratch that is reused: nothing
@@ -124,11 +125,13 @@ pub fn render_into<S: IsoScene>(
 }
 
 /// Frame-wide constants shared by all tiles.
-struct Ctx<'a> {
+struct Ctx<'a, I> {
     settings: &'a RenderSettings,
     raygen: RayGen,
     shader: Shader,
     isovalues: Vec<f32>,
+    /// `isovalues` as the scene prepared them, once for the frame ([`IsoScene::prepare`]).
+    isos: I,
     surface_of: Vec<usize>,
     bounds: Aabb,
     /// Minimum distance past a transparent hit (absolute part; a relative part is added).
@@ -248,6 +251,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         settings,
         raygen: RayGen::new(camera, width, height),
         shader: Shader::new(&settings.light),
+        isos: scene.prepare(&isovalues),
         isovalues,
         surface_of,
         bounds,
@@ -319,7 +323,7 @@ fn to_u8(c: f32) -> u8 {
 /// Renders tile `tx` of `band` into the band's rows.
 fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     scene: &S,
-    ctx: &Ctx<'_>,
+    ctx: &Ctx<'_, S::Isovalues>,
     tx: u32,
     band: &mut Band<'_>,
     sc: &mut Scratch,
@@ -432,21 +436,21 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         sc.hits.clear();
         sc.hits.resize(n, None);
         if settings.packets {
-            scene.first_hit_packet(
+            scene.first_hit_packet_prepared(
                 &sc.rays,
                 &sc.t_min,
                 &sc.t_max,
-                &ctx.isovalues,
+                &ctx.isos,
                 &mut sc.hits,
                 &mut tally.stats,
             );
         } else {
             for k in 0..n {
-                sc.hits[k] = scene.first_hit(
+                sc.hits[k] = scene.first_hit_prepared(
                     &sc.rays[k],
                     sc.t_min[k],
                     sc.t_max[k],
-                    &ctx.isovalues,
+                    &ctx.isos,
                     &mut tally.stats,
                 );
             }
@@ -592,7 +596,7 @@ fn next_round(sc: &mut Scratch, rays: &mut RayCounts) {
 #[inline]
 fn shade_hit<S: IsoScene, St: Stats, const SHADOWS: bool>(
     scene: &S,
-    ctx: &Ctx<'_>,
+    ctx: &Ctx<'_, S::Isovalues>,
     ray: &Ray,
     hit: &Hit,
     color: Vec3,
@@ -616,7 +620,7 @@ fn shade_hit<S: IsoScene, St: Stats, const SHADOWS: bool>(
         kept_intervals(&shadow, range, &ctx.settings.clips, clip_out, clip_tmp);
         if clip_out
             .iter()
-            .any(|iv| scene.occluded(&shadow, iv.lo, iv.hi, &ctx.isovalues, stats))
+            .any(|iv| scene.occluded_prepared(&shadow, iv.lo, iv.hi, &ctx.isos, stats))
         {
             lit = 0.0;
         }

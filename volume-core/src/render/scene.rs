@@ -108,14 +108,67 @@ impl Stats for CountStats {
 
 /// Something the renderer can shoot rays at: the isosurfaces of a volume.
 ///
-/// All rays and bounds are in world space. `isovalues` is the list of active isovalues (any
-/// number); the first hit of any of them along `[t_min, t_max]` wins. Implementations must be
-/// conservative: a hit the f64 reference finds inside `[t_min, t_max]` is not lost to rounding.
+/// All rays and bounds are in world space. The active isovalues (any number) are prepared
+/// once per frame or render call ([`IsoScene::prepare`]: converted to the voxel type,
+/// quantized, ...; as Open VKL's hit-iterator context) and handed to every ray of it; the
+/// first hit of any of them along `[t_min, t_max]` wins. Implementations must be
+/// conservative: a hit the f64 reference finds inside `[t_min, t_max]` is not lost to
+/// rounding.
+///
+/// [`IsoScene::first_hit`], [`IsoScene::occluded`] and [`IsoScene::first_hit_packet`] take
+/// the plain isovalue list and prepare it for that one call (tests, single rays).
 pub trait IsoScene: Sync {
+    /// The active isovalues in the form this scene's traversal reads them.
+    type Isovalues: Sync;
+
+    /// Prepares the list of active isovalues for traversal.
+    fn prepare(&self, isovalues: &[f32]) -> Self::Isovalues;
+
     /// World-space bounds of the data.
     fn world_bounds(&self) -> Aabb;
 
     /// First hit along the ray in `[t_min, t_max]`.
+    fn first_hit_prepared<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isos: &Self::Isovalues,
+        stats: &mut S,
+    ) -> Option<Hit>;
+
+    /// Any hit in `[t_min, t_max]` (shadow rays). Defaults to `first_hit_prepared`.
+    fn occluded_prepared<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isos: &Self::Isovalues,
+        stats: &mut S,
+    ) -> bool {
+        self.first_hit_prepared(ray, t_min, t_max, isos, stats)
+            .is_some()
+    }
+
+    /// First hits for a coherent packet of rays sharing `[t_min[i], t_max[i]]`.
+    ///
+    /// Structures with packet traversal (SIMD kd-tree packets, 16×16 BVH frusta) override
+    /// this; the default traces the rays one by one.
+    fn first_hit_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &Self::Isovalues,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        for (i, ray) in rays.iter().enumerate() {
+            out[i] = self.first_hit_prepared(ray, t_min[i], t_max[i], isos, stats);
+        }
+    }
+
+    /// [`IsoScene::first_hit_prepared`] of `isovalues` prepared for this ray only.
     fn first_hit<S: Stats>(
         &self,
         ray: &Ray,
@@ -123,9 +176,11 @@ pub trait IsoScene: Sync {
         t_max: f32,
         isovalues: &[f32],
         stats: &mut S,
-    ) -> Option<Hit>;
+    ) -> Option<Hit> {
+        self.first_hit_prepared(ray, t_min, t_max, &self.prepare(isovalues), stats)
+    }
 
-    /// Any hit in `[t_min, t_max]` (shadow rays). Defaults to `first_hit`.
+    /// [`IsoScene::occluded_prepared`] of `isovalues` prepared for this ray only.
     fn occluded<S: Stats>(
         &self,
         ray: &Ray,
@@ -134,14 +189,10 @@ pub trait IsoScene: Sync {
         isovalues: &[f32],
         stats: &mut S,
     ) -> bool {
-        self.first_hit(ray, t_min, t_max, isovalues, stats)
-            .is_some()
+        self.occluded_prepared(ray, t_min, t_max, &self.prepare(isovalues), stats)
     }
 
-    /// First hits for a coherent packet of rays sharing `[t_min[i], t_max[i]]`.
-    ///
-    /// Structures with packet traversal (SIMD kd-tree packets, 16×16 BVH frusta) override
-    /// this; the default traces the rays one by one.
+    /// [`IsoScene::first_hit_packet_prepared`] of `isovalues` prepared for these rays only.
     fn first_hit_packet<S: Stats>(
         &self,
         rays: &[Ray],
@@ -151,8 +202,15 @@ pub trait IsoScene: Sync {
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        for (i, ray) in rays.iter().enumerate() {
-            out[i] = self.first_hit(ray, t_min[i], t_max[i], isovalues, stats);
-        }
+        let isos = self.prepare(isovalues);
+        self.first_hit_packet_prepared(rays, t_min, t_max, &isos, out, stats);
     }
+}
+
+/// Receives a concretely typed scene from a holder of one of several types
+/// ([`crate::grid::AnyGridScene::visit`], [`crate::ooc::AnyOocVolume::visit_scene`]), so
+/// the code it runs is monomorphized for that scene.
+pub trait SceneVisitor {
+    type Output;
+    fn visit<S: IsoScene>(self, scene: &S) -> Self::Output;
 }

@@ -73,7 +73,7 @@ impl std::str::FromStr for BvhBuilder {
 pub struct BvhOptions {
     pub builder: BvhBuilder,
     /// Maximum tets per leaf (thesis: 12; clamped to `1..=255`). Measured at 1024² on
-    /// 223 k and 304 k tets (docs/benchmarks.md, issue 4): frame time is flat from 2 to 16
+    /// 223 k and 304 k tets (docs/benchmarks.md): frame time is flat from 2 to 16
     /// and slower at 24; 12 keeps the tree small at no measurable cost.
     pub leaf_size: usize,
 }

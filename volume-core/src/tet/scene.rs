@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use super::bvh::{BvhInfo, BvhOptions, TetBvh};
 use super::mesh::{TetError, TetMesh};
 use super::mt;
-use super::traverse::{MAX_PACKET, RawHit};
+use super::traverse::{MAX_PACKET, RawHit, TetView};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 
@@ -284,17 +284,18 @@ impl TetScene {
             .collect();
     }
 
-    /// Faceted shading normal of a raw hit: its tet's isopolygon extracted again.
-    pub(crate) fn faceted_normal(&self, h: &RawHit, iso: &[f32]) -> Vec3 {
-        let ids = &self.tets[h.tet as usize];
-        let v = ids.map(|i| self.verts[i as usize]);
-        let c = iso[h.surface as usize];
-        mt::extract(&v, ids, c).map_or(Vec3::Z, |p| p.oriented_normal(&v, c))
+    /// The traversal's view of this scene ([`super::traverse`]).
+    pub(crate) fn view(&self) -> TetView<'_> {
+        TetView {
+            verts: &self.verts,
+            tets: &self.tets,
+            bvh: &self.bvh,
+        }
     }
 
     /// Shading normal of a raw hit (module docs).
     fn hit_normal(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Vec3 {
-        let faceted = self.faceted_normal(h, iso);
+        let faceted = self.view().faceted_normal(h, iso);
         if self.normals == TetNormals::Smooth
             && let Some(rows) = self.normal_rows.get(h.tet as usize)
         {
@@ -324,7 +325,8 @@ impl TetScene {
         iso: &[f32],
         stats: &mut S,
     ) -> Option<RawHit> {
-        self.trace_single::<S, false>(ray, t_min, t_max, iso, stats)
+        self.view()
+            .trace_single::<S, false>(ray, t_min, t_max, iso, stats)
     }
 
     /// Packet first hits without shading data, in packets of [`TetScene::packet_size`].
@@ -341,7 +343,7 @@ impl TetScene {
         for start in (0..rays.len()).step_by(p) {
             let end = (start + p).min(rays.len());
             if p == 1 {
-                out[start] = self.trace_single::<S, false>(
+                out[start] = self.view().trace_single::<S, false>(
                     &rays[start],
                     t_min[start],
                     t_max[start],
@@ -349,7 +351,7 @@ impl TetScene {
                     stats,
                 );
             } else {
-                self.trace_packet(
+                self.view().trace_packet(
                     &rays[start..end],
                     &t_min[start..end],
                     &t_max[start..end],
@@ -428,40 +430,49 @@ fn tet_gradient(verts: &[Vec4], t: &[u32; 4]) -> (DVec3, f64) {
 }
 
 impl IsoScene for TetScene {
+    /// The isovalues as given: the BVH tests them per node and tet as they are.
+    type Isovalues = Vec<f32>;
+
+    fn prepare(&self, isovalues: &[f32]) -> Vec<f32> {
+        isovalues.to_vec()
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.bounds
     }
 
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         stats: &mut S,
     ) -> Option<Hit> {
-        self.trace_single::<S, false>(ray, t_min, t_max, isovalues, stats)
+        self.view()
+            .trace_single::<S, false>(ray, t_min, t_max, isovalues, stats)
             .map(|h| self.to_hit(ray, &h, isovalues))
     }
 
-    fn occluded<S: Stats>(
+    fn occluded_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         stats: &mut S,
     ) -> bool {
-        self.trace_single::<S, true>(ray, t_min, t_max, isovalues, stats)
+        self.view()
+            .trace_single::<S, true>(ray, t_min, t_max, isovalues, stats)
             .is_some()
     }
 
-    fn first_hit_packet<S: Stats>(
+    fn first_hit_packet_prepared<S: Stats>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
-        isovalues: &[f32],
+        isovalues: &Vec<f32>,
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
@@ -475,7 +486,7 @@ impl IsoScene for TetScene {
                 for start in (chunk..chunk_end).step_by(self.packet) {
                     let end = (start + self.packet).min(chunk_end);
                     let n = end - start;
-                    self.trace_packet_faceted(
+                    self.view().trace_packet_faceted(
                         &rays[start..end],
                         &t_min[start..end],
                         &t_max[start..end],

@@ -52,9 +52,8 @@ use std::cell::RefCell;
 use glam::{Vec3, Vec4};
 use wide::f32x8;
 
-use super::bvh::{BvhNode, MAX_DEPTH};
+use super::bvh::{BvhNode, MAX_DEPTH, TetBvh};
 use super::mt::{self, IsoPoly, RaySpace};
-use super::scene::TetScene;
 use super::simd::{LANES, RayBlock, poly8, slab8};
 use crate::math::{Ray, float::gamma_f32};
 use crate::render::Stats;
@@ -390,7 +389,24 @@ impl GroupSet {
     }
 }
 
-impl TetScene {
+/// What the traversal reads of a [`super::TetScene`]: the vertices (position and value),
+/// the tets in leaf order and the BVH over them.
+#[derive(Clone, Copy)]
+pub(crate) struct TetView<'a> {
+    pub verts: &'a [Vec4],
+    pub tets: &'a [[u32; 4]],
+    pub bvh: &'a TetBvh,
+}
+
+impl TetView<'_> {
+    /// Faceted shading normal of a raw hit: its tet's isopolygon extracted again.
+    pub(crate) fn faceted_normal(&self, h: &RawHit, iso: &[f32]) -> Vec3 {
+        let ids = &self.tets[h.tet as usize];
+        let v = ids.map(|i| self.verts[i as usize]);
+        let c = iso[h.surface as usize];
+        mt::extract(&v, ids, c).map_or(Vec3::Z, |p| p.oriented_normal(&v, c))
+    }
+
     /// Calls `f(tet, surface, vertices, polygon, stats)` for every non-empty isopolygon of
     /// the leaf's tets: per tet an isorange test per isovalue, then the on-the-fly extraction
     /// (§8.2.4); NaN-valued tets are void. The one leaf prologue of all traversals.
@@ -518,7 +534,7 @@ impl TetScene {
         self.trace_packet_impl::<S, false>(rays, t_min, t_max, iso, out, &mut [], stats);
     }
 
-    /// [`TetScene::trace_packet`] that also writes the faceted shading normal of each ray's
+    /// [`TetView::trace_packet`] that also writes the faceted shading normal of each ray's
     /// hit into `normals[i]` (entries of rays without a hit are unspecified). The large
     /// packets take it from the polygon when the hit is recorded, instead of extracting the
     /// polygon again afterwards; the result is the same ([`IsoPoly::oriented_normal`]).

@@ -125,51 +125,23 @@ impl<T: Voxel> VoxelBuffer<T> {
     }
 }
 
-/// Voxels of any native type. Match once (with [`crate::dispatch_voxels!`]) and run generic
-/// code on the typed buffer; never match per voxel.
-#[derive(Clone)]
-pub enum VoxelData {
-    U8(VoxelBuffer<u8>),
-    I8(VoxelBuffer<i8>),
-    U16(VoxelBuffer<u16>),
-    I16(VoxelBuffer<i16>),
-    U32(VoxelBuffer<u32>),
-    I32(VoxelBuffer<i32>),
-    F32(VoxelBuffer<f32>),
-    F64(VoxelBuffer<f64>),
+crate::voxel_enum! {
+    /// Voxels of any native type. Match once (with [`crate::dispatch_voxels!`]) and run
+    /// generic code on the typed buffer; never match per voxel.
+    #[derive(Clone)]
+    pub enum VoxelData(VoxelBuffer)
 }
 
-/// Runs `$body` with `$buf` bound to the typed [`VoxelBuffer`] inside a [`VoxelData`].
+/// Runs `$body` with `$buf` bound to the typed [`VoxelBuffer`] inside a [`VoxelData`]
+/// ([`crate::match_voxel!`] for `VoxelData`).
 #[macro_export]
 macro_rules! dispatch_voxels {
     ($data:expr, $buf:ident => $body:expr) => {
-        match $data {
-            $crate::VoxelData::U8($buf) => $body,
-            $crate::VoxelData::I8($buf) => $body,
-            $crate::VoxelData::U16($buf) => $body,
-            $crate::VoxelData::I16($buf) => $body,
-            $crate::VoxelData::U32($buf) => $body,
-            $crate::VoxelData::I32($buf) => $body,
-            $crate::VoxelData::F32($buf) => $body,
-            $crate::VoxelData::F64($buf) => $body,
-        }
+        $crate::match_voxel!($crate::VoxelData, $data, $buf => $body)
     };
 }
 
 impl VoxelData {
-    pub fn voxel_type(&self) -> VoxelType {
-        match self {
-            VoxelData::U8(_) => VoxelType::U8,
-            VoxelData::I8(_) => VoxelType::I8,
-            VoxelData::U16(_) => VoxelType::U16,
-            VoxelData::I16(_) => VoxelType::I16,
-            VoxelData::U32(_) => VoxelType::U32,
-            VoxelData::I32(_) => VoxelType::I32,
-            VoxelData::F32(_) => VoxelType::F32,
-            VoxelData::F64(_) => VoxelType::F64,
-        }
-    }
-
     pub fn len(&self) -> usize {
         dispatch_voxels!(self, b => b.len())
     }
@@ -194,29 +166,20 @@ impl VoxelData {
         byte_offset: usize,
         len: usize,
     ) -> Result<Self, VolumeError> {
-        Ok(match voxel_type {
-            VoxelType::U8 => VoxelData::U8(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::I8 => VoxelData::I8(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::U16 => VoxelData::U16(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::I16 => VoxelData::I16(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::U32 => VoxelData::U32(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::I32 => VoxelData::I32(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::F32 => VoxelData::F32(VoxelBuffer::from_shared(source, byte_offset, len)?),
-            VoxelType::F64 => VoxelData::F64(VoxelBuffer::from_shared(source, byte_offset, len)?),
-        })
+        Ok(crate::match_voxel_type!(voxel_type, V => {
+            VoxelBuffer::<V>::from_shared(source, byte_offset, len)?.into()
+        }))
     }
 }
 
-macro_rules! impl_from_vec {
-    ($($t:ty => $tag:ident),*) => {$(
-        impl From<Vec<$t>> for VoxelData {
-            fn from(v: Vec<$t>) -> Self {
-                VoxelData::$tag(VoxelBuffer::from_vec(v))
-            }
-        }
-    )*};
+impl<T: Voxel> From<Vec<T>> for VoxelData
+where
+    VoxelData: From<VoxelBuffer<T>>,
+{
+    fn from(v: Vec<T>) -> Self {
+        VoxelBuffer::from_vec(v).into()
+    }
 }
-impl_from_vec!(u8 => U8, i8 => I8, u16 => U16, i16 => I16, u32 => U32, i32 => I32, f32 => F32, f64 => F64);
 
 #[cfg(test)]
 mod tests {

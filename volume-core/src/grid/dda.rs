@@ -8,6 +8,7 @@
 //! §5). The walk stops once the next cell starts beyond the nearest hit so far, so the
 //! result does not depend on the visiting order of cells that share a boundary point.
 
+use super::hit::{CellBlock, CellTrace, first_hit_with};
 use crate::intersect::{
     CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame, intersect_cell,
 };
@@ -15,7 +16,7 @@ use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::voxel::Voxel;
 
-/// A borrowed view of a grid scene walked cell by cell (see [`crate::grid_scene::GridScene::dda`]).
+/// A borrowed view of a grid scene walked cell by cell (see [`super::GridScene::dda`]).
 #[derive(Clone, Copy)]
 pub struct DdaScene<'a, T: Voxel> {
     frame: &'a TraversalFrame,
@@ -175,45 +176,53 @@ impl<'a, T: Voxel> DdaScene<'a, T> {
             }
         }
     }
+}
 
-    /// [`IsoScene::first_hit`] with a static intersector.
-    pub fn first_hit_with<C: CellIntersector, S: Stats>(
+impl<T: Voxel> CellTrace<T> for DdaScene<'_, T> {
+    type Isovalues = IsoSet<T>;
+
+    fn frame(&self) -> &TraversalFrame {
+        self.frame
+    }
+
+    fn cell_hit<C: CellIntersector, S: Stats>(
         &self,
-        ray: &Ray,
+        ray: &LocalRay,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &IsoSet<T>,
         intersector: C,
         stats: &mut S,
-    ) -> Option<Hit> {
-        stats.ray();
-        let local = self.frame.to_local(ray);
-        let isos = IsoSet::new(isovalues);
-        let h = self.cell_hit_with(&local, t_min, t_max, &isos, intersector, stats)?;
-        Some(crate::grid_scene::make_hit(
-            self.frame,
-            self.voxels,
-            self.dims,
-            &local,
-            ray,
-            h,
-        ))
+    ) -> Option<(CellHit, CellBlock<'_, T>)> {
+        let h = self.cell_hit_with(ray, t_min, t_max, isos, intersector, stats)?;
+        let block = CellBlock {
+            frame: self.frame,
+            voxels: self.voxels,
+            dims: self.dims,
+        };
+        Some((h, block))
     }
 }
 
 impl<T: Voxel> IsoScene for DdaScene<'_, T> {
+    type Isovalues = IsoSet<T>;
+
+    fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
+        IsoSet::new(isovalues)
+    }
+
     fn world_bounds(&self) -> Aabb {
         self.frame.world_bounds()
     }
 
-    fn first_hit<S: Stats>(
+    fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &[f32],
+        isos: &IsoSet<T>,
         stats: &mut S,
     ) -> Option<Hit> {
-        crate::dispatch_intersector!(self.intersector, c => self.first_hit_with(ray, t_min, t_max, isovalues, c, stats))
+        crate::dispatch_intersector!(self.intersector, c => first_hit_with(self, ray, t_min, t_max, isos, c, stats))
     }
 }

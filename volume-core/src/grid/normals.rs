@@ -1,0 +1,181 @@
+//! Shading normals of rectilinear isosurfaces (thesis seed 004 §6.4), for the hits of
+//! [`super::hit`].
+//!
+//! Central differences at the 8 corners of the hit cell (one-sided at the volume border or
+//! next to a void neighbour), trilinearly interpolated at the hit ("derivative first", as the
+//! thesis suggests), mapped to world space with the inverse transpose of `world_from_grid`
+//! and the per-axis spacing. If that gradient vanishes, the analytic gradient of the cell's
+//! trilinear interpolant is used; if that vanishes too (a constant cell), the normal faces
+//! the ray. Normals are never NaN and point towards increasing values.
+
+use glam::{DVec3, Vec3};
+
+use crate::intersect::TraversalFrame;
+use crate::voxel::{Voxel, VoxelType};
+
+/// World normal at cell-local position `uvw` of `cell` (see the module docs).
+pub fn normal_at<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> Option<Vec3> {
+    if let Some(n) = normal_interior_f32(frame, voxels, dims, cell, uvw) {
+        return Some(n);
+    }
+    normal_general(frame, voxels, dims, cell, uvw)
+}
+
+/// The common case of [`normal_at`] in `f32` with straight-line loads: a cell at least one
+/// sample away from every border, a voxel type `f32` holds well (not 32-bit integers or
+/// `f64`), and a finite, nonzero result. Every corner then takes the central difference,
+/// exactly as in [`normal_general`]; anything else (borders, void or huge values, a
+/// vanishing gradient) returns `None` and takes the general path.
+#[inline]
+fn normal_interior_f32<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> Option<Vec3> {
+    if matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32)
+        || (0..3).any(|a| cell[a] == 0 || cell[a] + 3 > dims[a])
+    {
+        return None;
+    }
+    let (sy, sz) = (dims[0], dims[0] * dims[1]);
+    let base = cell[0] + sy * cell[1] + sz * cell[2];
+    // The 32 samples the central differences at the cell's 8 corners read (the 4×4×4
+    // block minus its corners and edges), loaded once as short rows (one bounds check per
+    // row) and converted to f32 once:
+    // - x: for each (y, z) of the cell, the row x = −1..=2;
+    // - y: for each z, the rows y = −1 and y = 2 at x = 0..=1;
+    // - z: for each y, the rows z = −1 and z = 2 at x = 0..=1.
+    let row4 = |o: usize| -> [f32; 4] {
+        let r: &[T; 4] = voxels[o..o + 4].try_into().expect("4 samples");
+        r.map(Voxel::to_f32)
+    };
+    let row2 = |o: usize| -> [f32; 2] {
+        let r: &[T; 2] = voxels[o..o + 2].try_into().expect("2 samples");
+        r.map(Voxel::to_f32)
+    };
+    // xr[z][y][x + 1]
+    let xr = [0, 1].map(|z| [0, 1].map(|y| row4(base - 1 + y * sy + z * sz)));
+    // yr[z][0 = y −1, 1 = y 2][x], zr[y][0 = z −1, 1 = z 2][x]
+    let yr = [0, 1].map(|z| [row2(base - sy + z * sz), row2(base + 2 * sy + z * sz)]);
+    let zr = [0, 1].map(|y| [row2(base + y * sy - sz), row2(base + y * sy + 2 * sz)]);
+    // Value at (x, y, z) of the cell's own 2×2×2 corners.
+    let v = |x: usize, y: usize, z: usize| xr[z][y][x + 1];
+    // Inverse central-difference widths per axis for the cell's two sample planes.
+    let inv_w = |a: usize| -> [f32; 2] {
+        let p = &frame.pos[a];
+        let c = cell[a];
+        [1.0 / (p[c + 1] - p[c - 1]), 1.0 / (p[c + 2] - p[c])]
+    };
+    let (wx, wy, wz) = (inv_w(0), inv_w(1), inv_w(2));
+    let mut grad = Vec3::ZERO;
+    for c in 0..8 {
+        let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+        // The neighbours one sample below and above along each axis.
+        let (xm, xp) = (xr[bz][by][bx], xr[bz][by][bx + 2]);
+        let (ym, yp) = if by == 0 {
+            (yr[bz][0][bx], v(bx, 1, bz))
+        } else {
+            (v(bx, 0, bz), yr[bz][1][bx])
+        };
+        let (zm, zp) = if bz == 0 {
+            (zr[by][0][bx], v(bx, by, 1))
+        } else {
+            (v(bx, by, 0), zr[by][1][bx])
+        };
+        let g = Vec3::new((xp - xm) * wx[bx], (yp - ym) * wy[by], (zp - zm) * wz[bz]);
+        let w = (if bx == 1 { uvw.x } else { 1.0 - uvw.x })
+            * (if by == 1 { uvw.y } else { 1.0 - uvw.y })
+            * (if bz == 1 { uvw.z } else { 1.0 - uvw.z });
+        grad += g * w;
+    }
+    if !grad.is_finite() || grad == Vec3::ZERO {
+        return None;
+    }
+    frame.world_normal(grad.as_dvec3())
+}
+
+/// [`normal_at`] for every case, in `f64` (see the module docs).
+fn normal_general<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> Option<Vec3> {
+    let value =
+        |i: usize, j: usize, k: usize| -> f64 { voxels[i + dims[0] * (j + dims[1] * k)].to_f64() };
+    let uvw = uvw.as_dvec3();
+    let mut grad = DVec3::ZERO;
+    let mut corner_vals = [0.0f64; 8];
+    for (c, corner_val) in corner_vals.iter_mut().enumerate() {
+        let v = [
+            cell[0] + (c & 1),
+            cell[1] + ((c >> 1) & 1),
+            cell[2] + ((c >> 2) & 1),
+        ];
+        let f0 = value(v[0], v[1], v[2]);
+        *corner_val = f0;
+        let mut g = DVec3::ZERO;
+        for a in 0..3 {
+            let sample = |idx: usize| {
+                let mut w = v;
+                w[a] = idx;
+                let f = value(w[0], w[1], w[2]);
+                f.is_finite().then_some((f, f64::from(frame.pos[a][idx])))
+            };
+            let minus = if v[a] > 0 { sample(v[a] - 1) } else { None };
+            let plus = if v[a] + 1 < dims[a] {
+                sample(v[a] + 1)
+            } else {
+                None
+            };
+            let here = f0
+                .is_finite()
+                .then_some((f0, f64::from(frame.pos[a][v[a]])));
+            g[a] = match (minus, here, plus) {
+                (Some((fm, xm)), _, Some((fp, xp))) => (fp - fm) / (xp - xm),
+                (Some((fm, xm)), Some((fh, xh)), None) => (fh - fm) / (xh - xm),
+                (None, Some((fh, xh)), Some((fp, xp))) => (fp - fh) / (xp - xh),
+                _ => 0.0,
+            };
+        }
+        let w = (if c & 1 == 1 { uvw.x } else { 1.0 - uvw.x })
+            * (if c & 2 == 2 { uvw.y } else { 1.0 - uvw.y })
+            * (if c & 4 == 4 { uvw.z } else { 1.0 - uvw.z });
+        grad += g * w;
+    }
+    if grad.is_finite()
+        && let Some(n) = frame.world_normal(grad)
+    {
+        return Some(n);
+    }
+    // The analytic gradient of the cell's trilinear interpolant.
+    let (lo, hi) = frame.cell_box(cell);
+    let width = (hi - lo).as_dvec3();
+    let mut g = DVec3::ZERO;
+    for (c, f) in corner_vals.iter().enumerate() {
+        let bits = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+        for a in 0..3 {
+            let mut term = if bits[a] == 1 { 1.0 } else { -1.0 } / width[a];
+            for b in 0..3 {
+                if b != a {
+                    term *= if bits[b] == 1 { uvw[b] } else { 1.0 - uvw[b] };
+                }
+            }
+            g[a] += f * term;
+        }
+    }
+    if g.is_finite() {
+        frame.world_normal(g)
+    } else {
+        None
+    }
+}

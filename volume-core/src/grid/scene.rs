@@ -1,0 +1,507 @@
+//! [`IsoScene`] for rectilinear volumes: the implicit min/max kd-tree
+//! ([`crate::kdtree`]) plus the chosen cell intersector ([`crate::intersect`]).
+//!
+//! [`GridScene<T>`] is the typed scene (voxels in their native type `T`); [`AnyGridScene`]
+//! holds one for whatever type a volume has and implements [`IsoScene`] itself (one
+//! well-predicted `match` per ray), or hands the typed scene to a [`SceneVisitor`] so a
+//! renderer runs fully monomorphized code ([`AnyGridScene::visit`]).
+//! [`GridScene::dda`] gives the brute-force twin over the same cells ([`super::dda`]).
+//!
+//! Rays are mapped into traversal units once per ray ([`TraversalFrame::to_local`]);
+//! `world_from_grid` is honoured, and `t` is preserved (the direction is not renormalised),
+//! so `Hit::t` is in the caller's ray units. Normals: [`super::normals`].
+
+use std::time::Duration;
+
+use glam::Vec3;
+
+use super::dda::DdaScene;
+use super::hit::{CellBlock, CellTrace, first_hit_with, make_hit};
+use crate::error::VolumeError;
+use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
+use crate::kdtree::{
+    KdTree, KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack,
+};
+use crate::math::{Aabb, Ray};
+use crate::render::{Hit, IsoScene, SceneVisitor, Stats};
+use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
+use crate::voxel::Voxel;
+
+/// A rectilinear volume of voxel type `T`, ready for ray casting.
+#[derive(Clone)]
+pub struct GridScene<T: Voxel> {
+    voxels: VoxelBuffer<T>,
+    dims: [usize; 3],
+    frame: TraversalFrame,
+    tree: KdTree<T>,
+    intersector: Intersector,
+}
+
+impl<T: Voxel> std::fmt::Debug for GridScene<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GridScene")
+            .field("voxel_type", &T::TYPE)
+            .field("dims", &self.dims)
+            .field("intersector", &self.intersector)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<T: Voxel> GridScene<T> {
+    /// Builds the kd-tree over `voxels` laid out on `grid`.
+    pub fn new(
+        grid: &Grid,
+        voxels: VoxelBuffer<T>,
+        intersector: Intersector,
+        config: KdTreeConfig,
+    ) -> Result<Self, VolumeError> {
+        if voxels.len() != grid.voxel_count() {
+            return Err(VolumeError::LengthMismatch {
+                dims: grid.dims(),
+                expected: grid.voxel_count(),
+                actual: voxels.len(),
+            });
+        }
+        let frame = TraversalFrame::new(grid);
+        let tree = KdTree::build(voxels.as_slice(), grid.dims(), &frame, config);
+        Ok(Self {
+            voxels,
+            dims: grid.dims(),
+            frame,
+            tree,
+            intersector,
+        })
+    }
+
+    pub fn intersector(&self) -> Intersector {
+        self.intersector
+    }
+
+    pub fn set_intersector(&mut self, intersector: Intersector) {
+        self.intersector = intersector;
+    }
+
+    pub fn tree(&self) -> &KdTree<T> {
+        &self.tree
+    }
+
+    pub fn frame(&self) -> &TraversalFrame {
+        &self.frame
+    }
+
+    pub fn voxels(&self) -> &[T] {
+        self.voxels.as_slice()
+    }
+
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Replaces all voxels (a new time step with the same dims): refit, not rebuild.
+    pub fn replace_voxels(&mut self, voxels: VoxelBuffer<T>) -> Result<(), VolumeError> {
+        let expected = self.dims.iter().product();
+        if voxels.len() != expected {
+            return Err(VolumeError::LengthMismatch {
+                dims: self.dims,
+                expected,
+                actual: voxels.len(),
+            });
+        }
+        self.voxels = voxels;
+        let hi = self.dims.map(|d| d - 1);
+        self.tree.refit_region(self.voxels.as_slice(), [0; 3], hi);
+        Ok(())
+    }
+
+    /// Edits the voxels in place, then refits the nodes over the inclusive voxel box
+    /// `[lo, hi]`, which must cover every voxel `edit` changes (thesis §7.6).
+    pub fn edit_voxels(&mut self, lo: [usize; 3], hi: [usize; 3], edit: impl FnOnce(&mut [T])) {
+        edit(self.voxels.make_mut());
+        let hi = [0, 1, 2].map(|a| hi[a].min(self.dims[a] - 1));
+        self.tree.refit_region(self.voxels.as_slice(), lo, hi);
+    }
+
+    /// New sample coordinates or orientation with the same dims: only the split tables
+    /// change (thesis §7.6).
+    pub fn set_grid(&mut self, grid: &Grid) -> Result<(), VolumeError> {
+        if grid.dims() != self.dims {
+            return Err(VolumeError::LengthMismatch {
+                dims: grid.dims(),
+                expected: grid.voxel_count(),
+                actual: self.voxels.len(),
+            });
+        }
+        self.frame = TraversalFrame::new(grid);
+        self.tree.set_coordinates(&self.frame);
+        Ok(())
+    }
+
+    /// Tree bytes (see [`KdTree::memory_bytes`]).
+    pub fn memory_bytes(&self) -> usize {
+        self.tree.memory_bytes()
+    }
+
+    /// Tree bytes per voxel byte.
+    pub fn memory_ratio(&self) -> f64 {
+        self.tree.memory_ratio()
+    }
+
+    pub fn build_time(&self) -> Duration {
+        self.tree.build_time()
+    }
+
+    /// The brute-force 3D-DDA twin over the same cells and intersector.
+    pub fn dda(&self) -> DdaScene<'_, T> {
+        DdaScene::new(
+            &self.frame,
+            self.voxels.as_slice(),
+            self.dims,
+            self.intersector,
+        )
+    }
+
+    /// The kd-tree hit in traversal terms, with a static intersector.
+    #[inline]
+    pub fn cell_hit_with<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &LocalRay,
+        t_min: f32,
+        t_max: f32,
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<CellHit> {
+        if ray.dir == Vec3::ZERO {
+            return None;
+        }
+        let (t0, t1) = self.frame.clip(ray, t_min, t_max)?;
+        self.tree.first_hit(
+            &self.frame,
+            self.voxels.as_slice(),
+            ray,
+            t0,
+            t1,
+            isos,
+            intersector,
+            stats,
+        )
+    }
+
+    /// Up to [`PACKET_WIDTH`] rays as one SIMD packet when their directions allow it
+    /// ([`crate::kdtree::packet_compatible`]), else one by one; same results either way.
+    /// `stack` is scratch, reused across calls.
+    pub fn packet_with<C: CellIntersector, S: Stats>(
+        &self,
+        stack: &mut PacketStack,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        let n = rays.len().min(PACKET_WIDTH);
+        let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
+        let mut t0 = [f32::INFINITY; PACKET_WIDTH];
+        let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
+        // Rays from one eye (a pinhole camera) share the origin's f64 transform.
+        let mut last_origin: Option<([u32; 3], Vec3)> = None;
+        for i in 0..n {
+            stats.ray();
+            let bits = rays[i].origin.to_array().map(f32::to_bits);
+            let origin = match last_origin {
+                Some((b, o)) if b == bits => o,
+                _ => {
+                    let o = self.frame.local_origin(rays[i].origin);
+                    last_origin = Some((bits, o));
+                    o
+                }
+            };
+            local[i] = LocalRay::new(origin, self.frame.local_dir(rays[i].dir));
+            if let Some((a, b)) = self.frame.clip(&local[i], t_min[i], t_max[i]) {
+                t0[i] = a;
+                t1[i] = b;
+            }
+        }
+        let mut cell_hits = [None; PACKET_WIDTH];
+        // The whole group as one packet if it can be; else groups of 8 (a packet, or one
+        // by one: rays on both sides of an axis-parallel direction).
+        let groups = if packet_compatible(&local[..n]) { n } else { 8 };
+        for start in (0..n).step_by(groups) {
+            let end = (start + groups).min(n);
+            if packet_compatible(&local[start..end]) {
+                self.tree.first_hit_packet_in(
+                    stack,
+                    &self.frame,
+                    self.voxels.as_slice(),
+                    &local[start..end],
+                    &t0[start..end],
+                    &t1[start..end],
+                    isos,
+                    intersector,
+                    stats,
+                    &mut cell_hits[start..end],
+                );
+                continue;
+            }
+            for i in start..end {
+                if t0[i] <= t1[i] && local[i].dir != Vec3::ZERO {
+                    cell_hits[i] = self.tree.first_hit(
+                        &self.frame,
+                        self.voxels.as_slice(),
+                        &local[i],
+                        t0[i],
+                        t1[i],
+                        isos,
+                        intersector,
+                        stats,
+                    );
+                }
+            }
+        }
+        for i in 0..n {
+            out[i] = cell_hits[i].map(|h| {
+                make_hit(
+                    &self.frame,
+                    self.voxels.as_slice(),
+                    self.dims,
+                    &local[i],
+                    &rays[i],
+                    h,
+                )
+            });
+        }
+    }
+
+    /// The grid as the block every hit lies in.
+    fn block(&self) -> CellBlock<'_, T> {
+        CellBlock {
+            frame: &self.frame,
+            voxels: self.voxels.as_slice(),
+            dims: self.dims,
+        }
+    }
+}
+
+impl<T: Voxel> CellTrace<T> for GridScene<T> {
+    type Isovalues = IsoSet<T>;
+
+    fn frame(&self) -> &TraversalFrame {
+        &self.frame
+    }
+
+    #[inline]
+    fn cell_hit<C: CellIntersector, S: Stats>(
+        &self,
+        ray: &LocalRay,
+        t_min: f32,
+        t_max: f32,
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+    ) -> Option<(CellHit, CellBlock<'_, T>)> {
+        let h = self.cell_hit_with(ray, t_min, t_max, isos, intersector, stats)?;
+        Some((h, self.block()))
+    }
+}
+
+impl<T: Voxel> IsoScene for GridScene<T> {
+    type Isovalues = IsoSet<T>;
+
+    fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
+        IsoSet::new(isovalues)
+    }
+
+    fn world_bounds(&self) -> Aabb {
+        self.frame.world_bounds()
+    }
+
+    #[inline]
+    fn first_hit_prepared<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isos: &IsoSet<T>,
+        stats: &mut S,
+    ) -> Option<Hit> {
+        crate::dispatch_intersector!(self.intersector, c => first_hit_with(self, ray, t_min, t_max, isos, c, stats))
+    }
+
+    fn first_hit_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        crate::dispatch_intersector!(self.intersector, c => {
+            if rays.is_empty() {
+                return;
+            }
+            with_packet_stack(|stack| {
+                for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                    let base = start * PACKET_WIDTH;
+                    self.packet_with(stack, chunk, &t_min[base..], &t_max[base..], isos, c, &mut out[base..], stats);
+                }
+            });
+        });
+    }
+}
+
+crate::voxel_enum! {
+    /// A [`GridScene`] of whichever voxel type the volume has.
+    #[derive(Debug, Clone)]
+    pub enum AnyGridScene(GridScene)
+}
+
+/// Runs `$body` with `$s` bound to the typed [`GridScene`] inside an [`AnyGridScene`]
+/// ([`crate::match_voxel!`] for `AnyGridScene`).
+#[macro_export]
+macro_rules! dispatch_grid_scene {
+    ($scene:expr, $s:ident => $body:expr) => {
+        $crate::match_voxel!($crate::grid::AnyGridScene, $scene, $s => $body)
+    };
+}
+
+/// What [`AnyGridScene::update_volume`] did for a new time step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepSwitch {
+    /// Same dims and voxel type: the tree was refit in place (thesis §7.6) and the split
+    /// tables recomputed.
+    Refit,
+    /// Other dims or voxel type: the scene was rebuilt.
+    Rebuild,
+}
+
+impl AnyGridScene {
+    /// Builds the scene for `volume` with the default tree layout.
+    pub fn new(volume: &RectilinearVolume, intersector: Intersector) -> Self {
+        Self::with_config(volume, intersector, KdTreeConfig::default())
+    }
+
+    pub fn with_config(
+        volume: &RectilinearVolume,
+        intersector: Intersector,
+        config: KdTreeConfig,
+    ) -> Self {
+        let g = &volume.grid;
+        // Lengths were checked when the volume was made.
+        crate::dispatch_voxels!(&volume.data, b => {
+            GridScene::new(g, b.clone(), intersector, config)
+                .expect("volume length checked")
+                .into()
+        })
+    }
+
+    pub fn intersector(&self) -> Intersector {
+        dispatch_grid_scene!(self, s => s.intersector())
+    }
+
+    /// Changing the intersector costs nothing (no rebuild).
+    pub fn set_intersector(&mut self, intersector: Intersector) {
+        dispatch_grid_scene!(self, s => s.set_intersector(intersector));
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        dispatch_grid_scene!(self, s => s.memory_bytes())
+    }
+
+    pub fn memory_ratio(&self) -> f64 {
+        dispatch_grid_scene!(self, s => s.memory_ratio())
+    }
+
+    pub fn build_time(&self) -> Duration {
+        dispatch_grid_scene!(self, s => s.build_time())
+    }
+
+    pub fn dims(&self) -> [usize; 3] {
+        dispatch_grid_scene!(self, s => s.dims())
+    }
+
+    /// Switches to another volume (a time step). Same dims and voxel type: the tree is
+    /// refit (thesis §7.6) and the split tables are recomputed; otherwise it is rebuilt.
+    pub fn update_volume(&mut self, volume: &RectilinearVolume) -> StepSwitch {
+        let same_dims = volume.dims() == self.dims();
+        // Same dims: the lengths match, so replacing the voxels and the grid cannot fail.
+        let refit = same_dims
+            && crate::match_voxel!(
+                AnyGridScene, &mut *self, s; VoxelData, &volume.data, b => {
+                    s.replace_voxels(b.clone()).is_ok() && s.set_grid(&volume.grid).is_ok()
+                };
+                else false
+            );
+        if refit {
+            StepSwitch::Refit
+        } else {
+            *self = Self::new(volume, self.intersector());
+            StepSwitch::Rebuild
+        }
+    }
+
+    /// Hands the typed kd-tree scene to `visitor` (monomorphized traversal).
+    pub fn visit<V: SceneVisitor>(&self, visitor: V) -> V::Output {
+        dispatch_grid_scene!(self, s => visitor.visit(s))
+    }
+
+    /// Hands the typed brute-force DDA twin to `visitor`.
+    pub fn visit_dda<V: SceneVisitor>(&self, visitor: V) -> V::Output {
+        dispatch_grid_scene!(self, s => visitor.visit(&s.dda()))
+    }
+}
+
+crate::voxel_enum! {
+    /// The active isovalues prepared for an [`AnyGridScene`]: the [`IsoSet`] of its voxel
+    /// type.
+    #[derive(Debug, Clone)]
+    pub enum AnyIsoSet(IsoSet)
+}
+
+/// Isovalues handed to a scene other than the one that prepared them.
+#[cold]
+fn isovalues_of_another_type() -> ! {
+    panic!("isovalues prepared by an AnyGridScene of another voxel type")
+}
+
+impl IsoScene for AnyGridScene {
+    type Isovalues = AnyIsoSet;
+
+    fn prepare(&self, isovalues: &[f32]) -> AnyIsoSet {
+        dispatch_grid_scene!(self, s => s.prepare(isovalues).into())
+    }
+
+    fn world_bounds(&self) -> Aabb {
+        dispatch_grid_scene!(self, s => s.world_bounds())
+    }
+
+    #[inline]
+    fn first_hit_prepared<S: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isos: &AnyIsoSet,
+        stats: &mut S,
+    ) -> Option<Hit> {
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.first_hit_prepared(ray, t_min, t_max, i, stats)
+        }; else isovalues_of_another_type())
+    }
+
+    fn first_hit_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &AnyIsoSet,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.first_hit_packet_prepared(rays, t_min, t_max, i, out, stats);
+        }; else isovalues_of_another_type());
+    }
+}
