@@ -833,8 +833,6 @@ pub fn run_extreme_suite(intersectors: &[Intersector]) -> Vec<(String, Vec<Accur
 #[cfg(test)]
 mod far_hit_probe {
     use super::*;
-    use crate::intersect::methods::{Exact, Reference};
-    use crate::intersect::{CellIntersector, CellSegment, cell_corners, frame::slab};
     use crate::render::{Camera, IsoScene, RayGen};
 
     /// Marschner–Lobb as data-samples generates it (f32, [-1, 1]³).
@@ -900,82 +898,5 @@ mod far_hit_probe {
     fn ml256_exact_has_no_far_missed_or_false_hits() {
         let (scene, rays) = ml256_rays((0..256).flat_map(|j| (0..256).map(move |i| (i, j))));
         assert_eq!(exact_disagreements(&scene, &rays), Vec::<usize>::new());
-    }
-
-    #[test]
-    #[ignore = "investigation of the far hits on ML 256³ (docs/accuracy.md)"]
-    fn print_ml256_far_hits() {
-        let vol = ml(256);
-        let any = AnyGridScene::new(&vol, Intersector::Exact);
-        let AnyGridScene::F32(scene) = &any else {
-            panic!("f32")
-        };
-        let cam = Camera::orbit(&scene.world_bounds(), 30.0, 20.0, 40.0);
-        let rg = RayGen::new(&cam, 256, 256);
-        let mut rays = vec![];
-        for j in 0..256 {
-            for i in 0..256 {
-                rays.push(rg.ray_at(i as f32 + 0.5, j as f32 + 0.5));
-            }
-        }
-        let isos = IsoSet::<f32>::new(&[0.5]);
-        let truth = trace(scene, &rays, &isos, Intersector::Reference);
-        let got = trace(scene, &rays, &isos, Intersector::Exact);
-        let mut far = 0;
-        for (idx, (g, t)) in got.iter().zip(&truth).enumerate() {
-            let (Some((g, sp)), Some((t, _))) = (g, t) else {
-                continue;
-            };
-            let dt = f64::from((g.t - t.t).abs()) * f64::from(*sp);
-            if dt <= FAR_HIT_CELLS {
-                continue;
-            }
-            far += 1;
-            println!(
-                "ray {idx} (pixel {}, {}): exact t {} cell {:?}, reference t {} cell {:?}, |dt| {dt:.3} cells",
-                idx % 256,
-                idx / 256,
-                g.t,
-                g.cell,
-                t.t,
-                t.cell
-            );
-            let local = scene.frame().to_local(&rays[idx]);
-            for (name, cell) in [("reference cell", t.cell), ("exact cell", g.cell)] {
-                let corners = cell_corners(scene.voxels(), scene.dims(), cell);
-                let (lo, hi) = scene.frame().cell_box(cell);
-                let Some((tn, tf)) = slab(&local, lo, hi, 0.0, f32::INFINITY) else {
-                    println!("  {name}: no slab overlap");
-                    continue;
-                };
-                let seg = CellSegment {
-                    origin: local.origin,
-                    dir: local.dir,
-                    inv_dir: local.inv_dir,
-                    lo,
-                    hi,
-                    t_near: tn,
-                    t_far: tf,
-                };
-                let (p0, dp) = seg.local_f64();
-                let g8 = corners.map(|v| f64::from(v) - 0.5);
-                let k = super::super::methods::cubic_f64(&g8, p0, dp);
-                let samples: Vec<String> = (0..=8)
-                    .map(|s| {
-                        let s = f64::from(s) / 8.0;
-                        format!("{:.2e}", ((k[0] * s + k[1]) * s + k[2]) * s + k[3])
-                    })
-                    .collect();
-                println!(
-                    "  {name}: t [{tn}, {tf}] exact {:?} reference {:?}; corners-iso {:?}; f64 cubic {k:?}; f(s/8) {samples:?}",
-                    Exact.first_root(&corners, 0.5, &seg),
-                    Reference.first_root(&corners, 0.5, &seg),
-                    corners.map(|v| v - 0.5),
-                );
-            }
-            let single = scene.first_hit(&rays[idx], 0.0, f32::INFINITY, &[0.5], &mut NoStats);
-            println!("  scene.first_hit (exact): {single:?}");
-        }
-        println!("{far} far hits");
     }
 }
