@@ -647,7 +647,7 @@ fn smooth_normals_follow_the_gradient() {
 fn packets_of_16x16_need_far_fewer_box_tests_than_2x2() {
     let mut rng = Rng::new(21);
     let mesh = grid_mesh(16, 0.3, &mut rng, |p, r| {
-        (p - Vec3::splat(7.5)).length() + r.range(-0.3, 0.3)
+        (p - Vec3::splat(7.5)).length() + r.range_f32(-0.3, 0.3)
     });
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     // A 64×64 pinhole image in Morton order per 16×16 tile.
