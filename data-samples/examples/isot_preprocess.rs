@@ -1,10 +1,10 @@
 //! The `isoscope preprocess` pipeline without the app crate (no GUI build), for profiling the
-//! out-of-core build (issue 5; thesis seed 004 §7.8.1):
+//! out-of-core build (thesis seed 004 §7.8.1):
 //!
 //! ```text
-//! isot_preprocess gen-blobs 512x512x256 u8 /tmp/ooc/blobs_u8.nrrd   # dense Gaussian blobs
-//! isot_preprocess gen-sparse 1024x1024x256 /tmp/ooc sparse          # sparse cone blobs (.nhdr)
-//! isot_preprocess build IN OUT.isot [HEIGHT]                         # formats::open + write_isot_volume
+//! isot_preprocess gen-blobs 512x512x256 u8 ooc/blobs_u8.nrrd   # dense Gaussian blobs
+//! isot_preprocess gen-sparse 1024x1024x256 ooc sparse          # sparse cone blobs (.nhdr)
+//! isot_preprocess build IN OUT.isot [HEIGHT]                    # formats::open + write_isot_volume
 //! ```
 //!
 //! `build` opens the input like the CLI (memory-mapped) and writes the same `.isot` as

@@ -11,7 +11,7 @@
 //! - [`tets`]: tetrahedral meshes of a ball, a shell and a torus (a structured grid split
 //!   into tets) with analytic point fields and a moving Gaussian series.
 //! - [`sparse_blobs`]: a 2048×2048×1100 `u8` volume of analytic blobs as a sparse file
-//!   (more than 2³² voxels, the out-of-core test of issue 5).
+//!   (more than 2³² voxels, for the out-of-core test).
 //! - [`sampling`]: the parallel field sampler and the [`ValueMap`] that stores a field's
 //!   natural values in any voxel type.
 //!

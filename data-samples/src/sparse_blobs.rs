@@ -1,5 +1,5 @@
 //! A big, mostly empty `u8` volume written as a *sparse file*, for the out-of-core test of
-//! volumes with more than 2³² voxels (issue 5; thesis seed 004 §7.7–7.9 uses a 2048²×1920
+//! volumes with more than 2³² voxels (thesis seed 004 §7.7–7.9 uses a 2048²×1920
 //! data set).
 //!
 //! A few analytic blobs (cones in the distance: `PEAK · (1 − d / radius)`, zero outside)
@@ -71,7 +71,7 @@ pub fn big_test_blobs() -> Vec<Blob> {
     ]
 }
 
-/// Dims of the issue-5 test volume: 4 613 734 400 voxels (more than 2³²).
+/// Dims of the out-of-core test volume: 4 613 734 400 voxels (more than 2³²).
 pub const BIG_DIMS: [u64; 3] = [2048, 2048, 1100];
 
 /// The rounded `u8` voxel at sample `p` (the maximum over blobs).

@@ -1,4 +1,4 @@
-//! Tetrahedral meshes for the unstructured renderer (issue 4, thesis 004 ch. 8): a ball, a
+//! Tetrahedral meshes for the unstructured renderer (thesis seed 004 ch. 8): a ball, a
 //! spherical shell and a torus, made by splitting the cells of a structured grid into tets.
 //!
 //! The grid has `n` cells per axis on `[−1, 1]³`; a cell is kept when its centre lies inside
@@ -16,7 +16,7 @@
 //!   [`MOVING_STEPS`] steps; [`moving_gaussian_steps`] gives every step's values (the
 //!   topology and points stay fixed: only scalars change, so a renderer refits value ranges).
 //!
-//! Size: [`cells_for_tets`] picks `n` for a target tet count (the issue asks for 100 k–1 M;
+//! Size: [`cells_for_tets`] picks `n` for a target tet count (the benchmarks use 100 k–1 M:
 //! `n ≈ 35` gives about 100 k tets for the ball, `n ≈ 76` about 1 M).
 
 use rayon::prelude::*;

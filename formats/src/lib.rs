@@ -9,8 +9,8 @@
 //! - [`nrrd`]: NRRD as Teem writes it (NRRD0001–0005, every type alias, raw/gzip/bzip2/ascii/hex,
 //!   attached and detached headers, `LIST` and printf data files, skips, orientation) and the
 //!   NRRD writer (raw, gzip).
-//! - [`series`]: time series from numbered files (`vol_%03d.nrrd`, `vol_*.nrrd`) and 4D NRRD,
-//!   loaded lazily through [`volume_core::series::StepLoader`].
+//! - [`series`]: time series from numbered files (`vol_%03d.nrrd`, `vol_*.nrrd`), loaded
+//!   lazily through [`volume_core::series::StepLoader`] (4D NRRD: [`nrrd::NrrdSteps`]).
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
 //!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
 //! - [`open`]: picks the reader from the name and contents.
@@ -130,6 +130,25 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
                  --endian/--spacing or a NAME.json sidecar"
             .into(),
     })
+}
+
+/// Step 0 of a lazily loaded series: loaded when the series is opened (so a broken first
+/// step is reported with its typed [`FormatError`]) and handed out by the first
+/// `load_step(0)`, which then needs no second read.
+pub(crate) struct FirstStep(std::sync::Mutex<Option<RectilinearVolume>>);
+
+impl FirstStep {
+    pub(crate) fn new(volume: RectilinearVolume) -> Self {
+        Self(std::sync::Mutex::new(Some(volume)))
+    }
+
+    /// The kept step 0, once.
+    pub(crate) fn take(&self) -> Option<RectilinearVolume> {
+        self.0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take()
+    }
 }
 
 #[cfg(test)]

@@ -1,105 +1,31 @@
-//! Time series: numbered files, globs, 4D NRRD and detached headers with data file lists.
+//! Time series of volume files: numbered files and globs.
 //!
-//! Every source becomes a [`StepLoader`] that loads one step on demand:
-//! - [`FileSeries`]: one volume file per step, from a printf pattern (`vol_%03d.nrrd`, the
-//!   files that exist, in numeric order) or a glob on the file name (`vol_*.nrrd`, natural
-//!   order: `vol_2` before `vol_10`).
-//! - [`NrrdSteps`]: the time axis of a 4D NRRD (attached, one data file, or a `LIST`/pattern
-//!   of data files). Raw data in one file is mapped once and each step is a zero-copy view.
+//! [`FileSeries`] is a [`StepLoader`] that loads one step on demand: one volume file per
+//! step, from a printf pattern (`vol_%03d.nrrd`, the files that exist, in numeric order) or a
+//! glob on the file name (`vol_*.nrrd`, natural order: `vol_2` before `vol_10`). The steps of
+//! a 4D NRRD (or of a detached header with one data file per step) are
+//! [`crate::nrrd::NrrdSteps`], next to the rest of NRRD.
 //!
 //! Step 0 is loaded when the series is opened, so a broken first file is reported with its
 //! specific [`FormatError`]; later steps report theirs as text through the loader interface.
 
 use std::cmp::Ordering;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use volume_core::RectilinearVolume;
 use volume_core::series::{StepLoader, TimeSeries};
 
 use crate::error::FormatError;
 use crate::nrrd::header::format_printf;
-use crate::nrrd::{DataPlan, VolumeLayout};
-use crate::{Dataset, OpenOptions};
-
-/// The steps of a 4D NRRD.
-pub struct NrrdSteps {
-    path: PathBuf,
-    plan: Arc<DataPlan>,
-    layout: VolumeLayout,
-    step_bytes: u64,
-    first: Mutex<Option<RectilinearVolume>>,
-}
-
-impl NrrdSteps {
-    /// Prepares the loader and loads step 0 (so that its errors are reported typed).
-    pub(crate) fn new(
-        path: &Path,
-        plan: Arc<DataPlan>,
-        layout: VolumeLayout,
-        step_bytes: u64,
-    ) -> Result<Self, FormatError> {
-        let s = Self {
-            path: path.to_path_buf(),
-            plan,
-            layout,
-            step_bytes,
-            first: Mutex::new(None),
-        };
-        let first = s.load(0)?;
-        *s.first
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(first);
-        Ok(s)
-    }
-
-    fn load(&self, step: usize) -> Result<RectilinearVolume, FormatError> {
-        let data = self
-            .plan
-            .load(step as u64 * self.step_bytes, self.step_bytes)?;
-        RectilinearVolume::new(self.layout.grid.clone(), data)
-            .map_err(|e| FormatError::geometry(&self.path, e))
-    }
-}
-
-impl StepLoader for NrrdSteps {
-    fn step_count(&self) -> usize {
-        self.layout.steps
-    }
-
-    fn load_step(&self, step: usize) -> Result<RectilinearVolume, String> {
-        if step == 0
-            && let Some(v) = self
-                .first
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .take()
-        {
-            return Ok(v);
-        }
-        self.load(step).map_err(|e| e.to_string())
-    }
-
-    fn time_value(&self, step: usize) -> Option<f64> {
-        self.layout.time.map(|(t0, dt)| t0 + step as f64 * dt)
-    }
-
-    fn describe(&self) -> String {
-        format!(
-            "{} time steps of 4D NRRD {} ({} data file(s))",
-            self.layout.steps,
-            self.path.display(),
-            self.plan.file_count()
-        )
-    }
-}
+use crate::{Dataset, FirstStep, OpenOptions};
 
 /// One volume file per step.
 pub struct FileSeries {
     pattern: PathBuf,
     files: Vec<PathBuf>,
     options: OpenOptions,
-    first: Mutex<Option<RectilinearVolume>>,
+    first: FirstStep,
 }
 
 impl FileSeries {
@@ -112,7 +38,7 @@ impl FileSeries {
             pattern: pattern.to_path_buf(),
             files,
             options: options.clone(),
-            first: Mutex::new(Some(first)),
+            first: FirstStep::new(first),
         })
     }
 
@@ -138,11 +64,7 @@ impl StepLoader for FileSeries {
 
     fn load_step(&self, step: usize) -> Result<RectilinearVolume, String> {
         if step == 0
-            && let Some(v) = self
-                .first
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .take()
+            && let Some(v) = self.first.take()
         {
             return Ok(v);
         }

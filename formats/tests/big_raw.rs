@@ -1,4 +1,4 @@
-//! Must-show of issue 2: opening a 4 GB raw file reads nothing and does not grow resident
+//! Opening a 4 GB raw file reads nothing and does not grow resident
 //! memory — the voxels are viewed in place in a memory map.
 //!
 //! The file is sparse (`File::set_len`), so it costs no disk space. This is a property test

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use formats::mesh::{self, LoadedMesh, MeshError, gmsh, tetgen, vtk_legacy, vtu};
+use volume_core::math::rng::Rng;
 
 #[derive(Clone, Copy)]
 enum Kind {
@@ -216,17 +217,14 @@ fn truncated_and_corrupted_files_never_panic() {
             _ => continue,
         };
         let bytes = std::fs::read(&path).unwrap();
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = Rng::new(0x9e37_79b9_7f4a_7c15);
         for step in 0..200 {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
             let mut b = bytes.clone();
             if step % 2 == 0 {
-                b.truncate((state >> 33) as usize % bytes.len());
+                b.truncate(rng.index(bytes.len()));
             } else {
-                let i = (state >> 33) as usize % b.len();
-                b[i] = (state >> 13) as u8;
+                let i = rng.index(b.len());
+                b[i] = rng.next_u32() as u8;
             }
             let r = std::panic::catch_unwind(|| read(kind, &b));
             assert!(r.is_ok(), "{}: step {step} panicked", path.display());

@@ -1,4 +1,4 @@
-//! The malformed-file corpus (issue 2, "Bad input"): every file gives its specific error —
+//! The malformed-file corpus: every file gives its specific error —
 //! the variant and the field it names — and nothing panics.
 //!
 //! The corpus is generated from the table below into a temporary directory (so it needs no

@@ -1,4 +1,4 @@
-//! Cross-check with Teem, the reference NRRD implementation (issue 2): volumes are wrapped by
+//! Cross-check with Teem, the reference NRRD implementation: volumes are wrapped by
 //! `unu make` and re-encoded by `unu save` in every encoding unu writes (raw, gzip, bzip2,
 //! ascii, hex), both byte orders, attached and detached, with spacings, with space directions
 //! (axis-aligned and oblique) and origin, with printf-pattern and LIST data files and as 4D

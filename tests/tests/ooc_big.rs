@@ -1,4 +1,4 @@
-//! Out-of-core treelets on a volume with more than 2³² voxels (issue 5; thesis seed 004
+//! Out-of-core treelets on a volume with more than 2³² voxels (thesis seed 004
 //! §7.7–7.9).
 //!
 //! The input is `data_samples::sparse_blobs`: 2048×2048×1100 `u8` (4 613 734 400 voxels,
@@ -6,13 +6,13 @@
 //! 2³²). The test preprocesses it with `isoscope preprocess` (the CLI's `run`), opens the
 //! `.isot`, lets the loader reach the finest level for isovalue 100.5 and checks hits against
 //! the analytic spheres: positions, hit/miss, no wrap-around. It prints the measurements
-//! recorded in `docs/benchmarks.md` ("Out-of-core treelets (issue 5)").
+//! recorded in `docs/benchmarks.md` ("Out-of-core treelets").
 //!
 //! It needs about 20 GB of free disk in `ISOSCOPE_BIG_DIR` (default: the system temp dir)
 //! and minutes, so it is ignored in CI. Run:
 //!
 //! ```text
-//! ISOSCOPE_BIG_DIR=/work/big cargo test -p isoscope-e2e --test ooc_big -- --ignored --nocapture
+//! ISOSCOPE_BIG_DIR=/path/with/20GB cargo test -p isoscope-e2e --test ooc_big -- --ignored --nocapture
 //! ```
 //!
 //! Set `ISOSCOPE_BIG_KEEP=1` to keep the input and the `.isot` afterwards (they are deleted

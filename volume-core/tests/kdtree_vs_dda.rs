@@ -8,34 +8,17 @@ use volume_core::grid::GridScene;
 use volume_core::intersect::{Intersector, IsoSet, corner_range, methods::Exact};
 use volume_core::kdtree::{KdTree, KdTreeConfig};
 use volume_core::math::Ray;
+use volume_core::math::rng::Rng;
 use volume_core::render::{CountStats, IsoScene, NoStats, Stats};
 use volume_core::{AxisCoords, Grid, Voxel, VoxelBuffer};
 
-/// Small deterministic generator (tests must not depend on global state).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> u64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        self.0 >> 11
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next() as f64 / (1u64 << 53) as f64) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-}
-
-fn grid_for(dims: [usize; 3], rng: &mut Lcg, explicit: bool) -> Grid {
+fn grid_for(dims: [usize; 3], rng: &mut Rng, explicit: bool) -> Grid {
     if explicit {
         let axes = [0, 1, 2].map(|a| {
             let mut x = 0.0f64;
             let c: Vec<f64> = (0..dims[a])
                 .map(|_| {
-                    x += 0.5 + f64::from(rng.unit());
+                    x += 0.5 + f64::from(rng.unit_f32());
                     x
                 })
                 .collect();
@@ -46,28 +29,28 @@ fn grid_for(dims: [usize; 3], rng: &mut Lcg, explicit: bool) -> Grid {
         Grid::uniform(
             dims,
             [-3.0, 1.5, 100.0],
-            [1.0, 0.75 + f64::from(rng.unit()), 1.25],
+            [1.0, 0.75 + f64::from(rng.unit_f32()), 1.25],
         )
         .unwrap()
     }
 }
 
-fn random_ray(rng: &mut Lcg, lo: Vec3, hi: Vec3) -> Ray {
+fn random_ray(rng: &mut Rng, lo: Vec3, hi: Vec3) -> Ray {
     let c = (lo + hi) * 0.5;
     let ext = (hi - lo).max(Vec3::splat(1.0));
     let origin = c + Vec3::new(
-        rng.range(-1.2, 1.2),
-        rng.range(-1.2, 1.2),
-        rng.range(-1.2, 1.2),
+        rng.range_f32(-1.2, 1.2),
+        rng.range_f32(-1.2, 1.2),
+        rng.range_f32(-1.2, 1.2),
     ) * ext;
     let target = c + Vec3::new(
-        rng.range(-0.6, 0.6),
-        rng.range(-0.6, 0.6),
-        rng.range(-0.6, 0.6),
+        rng.range_f32(-0.6, 0.6),
+        rng.range_f32(-0.6, 0.6),
+        rng.range_f32(-0.6, 0.6),
     ) * ext;
     let mut dir = (target - origin).normalize_or(Vec3::X);
     // Some axis-parallel and in-plane rays.
-    match rng.next() % 8 {
+    match rng.below(8) {
         0 => dir = Vec3::new(dir.x.signum(), 0.0, 0.0),
         1 => dir = Vec3::new(0.0, dir.y, dir.z).normalize_or(Vec3::Y),
         _ => {}
@@ -80,7 +63,7 @@ fn compare_scene<T: Voxel>(
     grid: &Grid,
     voxels: Vec<T>,
     isos: &[f32],
-    rng: &mut Lcg,
+    rng: &mut Rng,
     rays: usize,
 ) -> usize {
     let mut hits = 0;
@@ -156,7 +139,7 @@ proptest! {
 
     #[test]
     fn kd_tree_equals_dda_walk_u8(dims in dims_strategy(), seed in any::<u64>(), explicit in any::<bool>(), niso in 1usize..4) {
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         let grid = grid_for(dims, &mut rng, explicit);
         let n = dims.iter().product::<usize>();
         // Smooth-ish field plus noise so that surfaces are sparse.
@@ -164,26 +147,26 @@ proptest! {
             let x = (i % dims[0]) as f32;
             let y = ((i / dims[0]) % dims[1]) as f32;
             let z = (i / (dims[0] * dims[1])) as f32;
-            let v = 128.0 + 60.0 * (0.7 * x).sin() * (0.5 * y + 0.3 * z).cos() + rng.range(-20.0, 20.0);
+            let v = 128.0 + 60.0 * (0.7 * x).sin() * (0.5 * y + 0.3 * z).cos() + rng.range_f32(-20.0, 20.0);
             v.clamp(0.0, 255.0) as u8
         }).collect();
-        let isos: Vec<f32> = (0..niso).map(|i| if i == 0 { 128.0 } else { rng.range(60.0, 200.0).round() + 0.5 * (i % 2) as f32 }).collect();
+        let isos: Vec<f32> = (0..niso).map(|i| if i == 0 { 128.0 } else { rng.range_f32(60.0, 200.0).round() + 0.5 * (i % 2) as f32 }).collect();
         let _hits = compare_scene(&grid, voxels, &isos, &mut rng, 60);
     }
 
     #[test]
     fn kd_tree_equals_dda_walk_f32_with_void(dims in dims_strategy(), seed in any::<u64>(), explicit in any::<bool>()) {
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         let grid = grid_for(dims, &mut rng, explicit);
         let n = dims.iter().product::<usize>();
         let voxels: Vec<f32> = (0..n).map(|_| {
-            match rng.next() % 40 {
+            match rng.below(40) {
                 0 => f32::NAN,
                 1 => f32::INFINITY,
-                _ => rng.range(-1.0, 1.0),
+                _ => rng.range_f32(-1.0, 1.0),
             }
         }).collect();
-        let isos = [rng.range(-0.5, 0.5), 0.9];
+        let isos = [rng.range_f32(-0.5, 0.5), 0.9];
         let _hits = compare_scene(&grid, voxels, &isos, &mut rng, 60);
     }
 }
@@ -192,11 +175,11 @@ proptest! {
 fn dda_comparisons_see_many_hits() {
     // Run one fixed comparison and check that a good share of rays hit, so the property
     // tests above compare hits and not only misses.
-    let mut rng = Lcg(5);
+    let mut rng = Rng::new(5);
     let dims = [17, 9, 12];
     let grid = grid_for(dims, &mut rng, false);
     let n = dims.iter().product::<usize>();
-    let voxels: Vec<f32> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+    let voxels: Vec<f32> = (0..n).map(|_| rng.range_f32(-1.0, 1.0)).collect();
     let hits = compare_scene(&grid, voxels, &[0.0, 0.5], &mut rng, 200);
     assert!(hits > 300, "{hits} of 600");
 }
@@ -287,15 +270,15 @@ fn check_ptr(
 
 #[test]
 fn slim_layout_equals_naive_pointer_tree() {
-    let mut rng = Lcg(7);
+    let mut rng = Rng::new(7);
     for dims in [[2, 2, 2], [3, 5, 2], [9, 4, 6], [17, 3, 10], [6, 6, 6]] {
         let n: usize = dims.iter().product();
         let vox: Vec<f32> = (0..n)
             .map(|_| {
-                if rng.next().is_multiple_of(13) {
+                if rng.below(13) == 0 {
                     f32::NAN
                 } else {
-                    rng.range(-5.0, 5.0)
+                    rng.range_f32(-5.0, 5.0)
                 }
             })
             .collect();
@@ -325,11 +308,11 @@ fn slim_layout_equals_naive_pointer_tree() {
 
 #[test]
 fn refit_after_edits_equals_rebuild() {
-    let mut rng = Lcg(11);
+    let mut rng = Rng::new(11);
     let dims = [19, 12, 9];
     let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
     let n: usize = dims.iter().product();
-    let vox: Vec<i16> = (0..n).map(|_| (rng.next() % 1000) as i16).collect();
+    let vox: Vec<i16> = (0..n).map(|_| (rng.below(1000)) as i16).collect();
     let mut scene = GridScene::new(
         &grid,
         VoxelBuffer::from_vec(vox),
@@ -338,9 +321,9 @@ fn refit_after_edits_equals_rebuild() {
     )
     .unwrap();
     for _ in 0..20 {
-        let lo = [0, 1, 2].map(|a| (rng.next() as usize) % dims[a]);
-        let hi = [0, 1, 2].map(|a| (lo[a] + (rng.next() as usize) % 4).min(dims[a] - 1));
-        let val = (rng.next() % 3000) as i16 - 1000;
+        let lo = [0, 1, 2].map(|a| rng.index(dims[a]));
+        let hi = [0, 1, 2].map(|a| (lo[a] + rng.below(4) as usize).min(dims[a] - 1));
+        let val = (rng.below(3000)) as i16 - 1000;
         scene.edit_voxels(lo, hi, |v| {
             for k in lo[2]..=hi[2] {
                 for j in lo[1]..=hi[1] {
@@ -426,23 +409,23 @@ fn sphere_distance_field_hits_within_bound() {
     )
     .unwrap();
     let bound = spacing.iter().map(|h| h * h).sum::<f64>() / (8.0 * (r - 1.0));
-    let mut rng = Lcg(3);
+    let mut rng = Rng::new(3);
     let cv = glam::DVec3::from(c);
     let mut stats = CountStats::default();
     for _ in 0..500 {
         // Rays from 20 units away aimed near the centre; the camera sits at 1e6 too.
         let dir = glam::DVec3::new(
-            f64::from(rng.range(-1.0, 1.0)),
-            f64::from(rng.range(-1.0, 1.0)),
-            f64::from(rng.range(-1.0, 1.0)),
+            f64::from(rng.range_f32(-1.0, 1.0)),
+            f64::from(rng.range_f32(-1.0, 1.0)),
+            f64::from(rng.range_f32(-1.0, 1.0)),
         )
         .normalize();
         let eye = cv - dir * 20.0;
         let aim = cv
             + glam::DVec3::new(
-                f64::from(rng.range(-3.0, 3.0)),
-                f64::from(rng.range(-3.0, 3.0)),
-                f64::from(rng.range(-3.0, 3.0)),
+                f64::from(rng.range_f32(-3.0, 3.0)),
+                f64::from(rng.range_f32(-3.0, 3.0)),
+                f64::from(rng.range_f32(-3.0, 3.0)),
             );
         let d = (aim - eye).normalize();
         // Keep the ray in f64 relative to the eye: f32 world coordinates near 1e6 have
@@ -468,7 +451,7 @@ fn sphere_distance_field_hits_within_bound() {
 
 /// Packets (8 coherent rays from one eye, as a camera makes them) give exactly the
 /// single-ray hits, including groups the packet code must split (mixed direction signs).
-fn packets_equal_single<T: Voxel>(grid: &Grid, voxels: &[T], isos: &[f32], rng: &mut Lcg) -> usize {
+fn packets_equal_single<T: Voxel>(grid: &Grid, voxels: &[T], isos: &[f32], rng: &mut Rng) -> usize {
     let mut hits = 0;
     for unstored in [0, 2] {
         let scene = GridScene::new(
@@ -485,23 +468,23 @@ fn packets_equal_single<T: Voxel>(grid: &Grid, voxels: &[T], isos: &[f32], rng: 
             let c = (b.min + b.max) * 0.5;
             let ext = (b.max - b.min).max(Vec3::ONE);
             let eye = c + Vec3::new(
-                rng.range(-1.5, 1.5),
-                rng.range(-1.5, 1.5),
-                rng.range(-1.5, 1.5),
+                rng.range_f32(-1.5, 1.5),
+                rng.range_f32(-1.5, 1.5),
+                rng.range_f32(-1.5, 1.5),
             ) * ext;
             let aim = c + Vec3::new(
-                rng.range(-0.5, 0.5),
-                rng.range(-0.5, 0.5),
-                rng.range(-0.5, 0.5),
+                rng.range_f32(-0.5, 0.5),
+                rng.range_f32(-0.5, 0.5),
+                rng.range_f32(-0.5, 0.5),
             ) * ext;
-            let spread = rng.range(0.001, 0.3);
-            let n = 1 + (rng.next() as usize) % 16;
+            let spread = rng.range_f32(0.001, 0.3);
+            let n = 1 + rng.below(16) as usize;
             let rays: Vec<Ray> = (0..n)
                 .map(|_| {
                     let jitter = Vec3::new(
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
-                        rng.range(-1.0, 1.0),
+                        rng.range_f32(-1.0, 1.0),
+                        rng.range_f32(-1.0, 1.0),
+                        rng.range_f32(-1.0, 1.0),
                     ) * spread;
                     Ray::new(eye, ((aim - eye).normalize() + jitter).normalize())
                 })
@@ -527,21 +510,21 @@ proptest! {
 
     #[test]
     fn packet_traversal_equals_single_rays(dims in dims_strategy(), seed in any::<u64>(), explicit in any::<bool>()) {
-        let mut rng = Lcg(seed);
+        let mut rng = Rng::new(seed);
         let grid = grid_for(dims, &mut rng, explicit);
         let n = dims.iter().product::<usize>();
-        let voxels: Vec<f32> = (0..n).map(|_| if rng.next().is_multiple_of(50) { f32::NAN } else { rng.range(-1.0, 1.0) }).collect();
+        let voxels: Vec<f32> = (0..n).map(|_| if rng.below(50) == 0 { f32::NAN } else { rng.range_f32(-1.0, 1.0) }).collect();
         let _hits = packets_equal_single(&grid, &voxels, &[0.2, -0.5], &mut rng);
     }
 }
 
 #[test]
 fn packet_comparison_sees_hits() {
-    let mut rng = Lcg(21);
+    let mut rng = Rng::new(21);
     let dims = [20, 17, 9];
     let grid = grid_for(dims, &mut rng, false);
     let voxels: Vec<u8> = (0..dims.iter().product::<usize>())
-        .map(|_| (rng.next() % 256) as u8)
+        .map(|_| (rng.below(256)) as u8)
         .collect();
     let hits = packets_equal_single(&grid, &voxels, &[100.5, 200.0], &mut rng);
     assert!(hits > 200, "{hits}");
@@ -552,11 +535,11 @@ fn packet_comparison_sees_hits() {
 /// signs (one packet): every ray equals its single-ray hit.
 #[test]
 fn packet_groups_with_mixed_signs_equal_single_rays() {
-    let mut rng = Lcg(77);
+    let mut rng = Rng::new(77);
     let dims = [24, 19, 13];
     let grid = grid_for(dims, &mut rng, false);
     let voxels: Vec<f32> = (0..dims.iter().product::<usize>())
-        .map(|_| rng.range(-1.0, 1.0))
+        .map(|_| rng.range_f32(-1.0, 1.0))
         .collect();
     let scene = GridScene::new(
         &grid,
@@ -570,16 +553,16 @@ fn packet_groups_with_mixed_signs_equal_single_rays() {
     let ext = b.max - b.min;
     let (mut hits, mut total) = (0, 0);
     for trial in 0..200 {
-        let eye = c + Vec3::new(rng.range(-0.3, 0.3), -1.5, rng.range(-0.3, 0.3)) * ext;
+        let eye = c + Vec3::new(rng.range_f32(-0.3, 0.3), -1.5, rng.range_f32(-0.3, 0.3)) * ext;
         // Targets left and right of the eye's x (mixed halves) or all on one side.
         let mixed = trial % 2 == 0;
         let rays: Vec<Ray> = (0..16)
             .map(|i| {
                 let side = if mixed && i >= 8 { -1.0 } else { 1.0 };
                 let target = Vec3::new(
-                    eye.x + side * rng.range(0.05, 0.4) * ext.x,
-                    c.y + rng.range(-0.3, 0.3) * ext.y,
-                    c.z + rng.range(-0.3, 0.3) * ext.z,
+                    eye.x + side * rng.range_f32(0.05, 0.4) * ext.x,
+                    c.y + rng.range_f32(-0.3, 0.3) * ext.y,
+                    c.z + rng.range_f32(-0.3, 0.3) * ext.z,
                 );
                 Ray::new(eye, (target - eye).normalize())
             })

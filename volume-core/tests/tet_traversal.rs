@@ -5,28 +5,11 @@
 use glam::Vec3;
 use proptest::prelude::*;
 use volume_core::math::Ray;
+use volume_core::math::rng::Rng;
 use volume_core::render::{CountStats, IsoScene, NoStats};
 use volume_core::tet::{
     BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetNormals, TetScene, lattice_tets,
 };
-
-/// Small deterministic generator (SplitMix64).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn f(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f()
-    }
-}
 
 /// An `n³`-point grid over `[0, n−1]³`, jittered by `jitter`, split into 6 tets per cube;
 /// `field(p)` gives the point values.
@@ -44,9 +27,9 @@ fn grid_mesh(
             for i in 0..n {
                 let p = Vec3::new(i as f32, j as f32, k as f32)
                     + Vec3::new(
-                        rng.range(-jitter, jitter),
-                        rng.range(-jitter, jitter),
-                        rng.range(-jitter, jitter),
+                        rng.range_f32(-jitter, jitter),
+                        rng.range_f32(-jitter, jitter),
+                        rng.range_f32(-jitter, jitter),
                     );
                 values.push(field(p, rng));
                 points.push(p.to_array());
@@ -60,9 +43,9 @@ fn grid_mesh(
 fn random_rays(rng: &mut Rng, count: usize, extent: f32, coherent: bool) -> Vec<Ray> {
     let c = Vec3::splat(extent * 0.5);
     let eye = c + Vec3::new(
-        rng.range(-1.0, 1.0),
-        rng.range(-1.0, 1.0),
-        rng.range(-1.0, 1.0),
+        rng.range_f32(-1.0, 1.0),
+        rng.range_f32(-1.0, 1.0),
+        rng.range_f32(-1.0, 1.0),
     )
     .normalize()
         * extent
@@ -73,12 +56,12 @@ fn random_rays(rng: &mut Rng, count: usize, extent: f32, coherent: bool) -> Vec<
                 eye
             } else {
                 Vec3::new(
-                    rng.range(-0.5, 1.5),
-                    rng.range(-0.5, 1.5),
-                    rng.range(-0.5, 1.5),
+                    rng.range_f32(-0.5, 1.5),
+                    rng.range_f32(-0.5, 1.5),
+                    rng.range_f32(-0.5, 1.5),
                 ) * extent
             };
-            let target = Vec3::new(rng.f(), rng.f(), rng.f()) * extent;
+            let target = Vec3::new(rng.unit_f32(), rng.unit_f32(), rng.unit_f32()) * extent;
             Ray::new(o, (target - o).normalize())
         })
         .collect()
@@ -190,7 +173,7 @@ fn check_all(
 }
 
 fn noisy_field(p: Vec3, rng: &mut Rng) -> f32 {
-    (p - Vec3::splat(2.0)).length() + rng.range(-0.4, 0.4)
+    (p - Vec3::splat(2.0)).length() + rng.range_f32(-0.4, 0.4)
 }
 
 fn run_case(
@@ -200,19 +183,19 @@ fn run_case(
     builder: BvhBuilder,
     leaf_size: usize,
 ) -> Result<(), String> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mesh = grid_mesh(n, 0.3, &mut rng, noisy_field);
     let mut scene = TetScene::new(&mesh, "f", BvhOptions { builder, leaf_size }).unwrap();
     scene.validate()?;
     let (lo, hi) = scene.value_range().unwrap();
-    let count = 1 + (rng.next() % 3) as usize;
-    let iso: Vec<f32> = (0..count).map(|_| rng.range(lo, hi)).collect();
+    let count = 1 + rng.below(3) as usize;
+    let iso: Vec<f32> = (0..count).map(|_| rng.range_f32(lo, hi)).collect();
     let rays = random_rays(&mut rng, 300, (n - 1) as f32, coherent);
     let t_min: Vec<f32> = rays
         .iter()
         .map(|_| {
-            if rng.f() < 0.3 {
-                rng.range(0.0, 3.0)
+            if rng.unit_f32() < 0.3 {
+                rng.range_f32(0.0, 3.0)
             } else {
                 0.0
             }
@@ -221,8 +204,8 @@ fn run_case(
     let t_max: Vec<f32> = rays
         .iter()
         .map(|_| {
-            if rng.f() < 0.3 {
-                rng.range(3.0, 8.0)
+            if rng.unit_f32() < 0.3 {
+                rng.range_f32(3.0, 8.0)
             } else {
                 f32::INFINITY
             }
@@ -256,7 +239,7 @@ proptest! {
 #[test]
 fn rays_through_shared_isosurface_edges_and_vertices_never_miss() {
     let n = 6;
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let mesh = grid_mesh(n, 0.0, &mut rng, |p, _| p.x + 2.0 * p.y + 4.0 * p.z);
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     let c = 10.5f32;
@@ -339,7 +322,7 @@ fn rays_through_shared_isosurface_edges_and_vertices_never_miss() {
 #[test]
 fn rays_through_curved_surface_edges_never_miss() {
     use std::collections::HashMap;
-    let mut rng = Rng(99);
+    let mut rng = Rng::new(99);
     let centre = Vec3::splat(3.0);
     let mesh = grid_mesh(7, 0.25, &mut rng, |p, _| (p - centre).length());
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
@@ -369,7 +352,7 @@ fn rays_through_curved_surface_edges_never_miss() {
         );
         let [a, b] = ends.map(|k| Vec3::from_array(k.map(f32::from_bits)));
         let target = (a + b) * 0.5;
-        let o = Vec3::new(rng.range(-3.0, 9.0), rng.range(-3.0, 9.0), -4.0);
+        let o = Vec3::new(rng.range_f32(-3.0, 9.0), rng.range_f32(-3.0, 9.0), -4.0);
         let d = (target - o).normalize();
         // Sides of the two polygons across the edge, seen along the ray.
         let side = |p: Vec3| {
@@ -399,7 +382,7 @@ fn rays_through_curved_surface_edges_never_miss() {
 
 #[test]
 fn refit_equals_rebuild_for_scalars_and_positions() {
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let mesh = grid_mesh(7, 0.3, &mut rng, noisy_field);
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     let rays = random_rays(&mut rng, 400, 6.0, true);
@@ -412,7 +395,7 @@ fn refit_equals_rebuild_for_scalars_and_positions() {
         let values: Vec<f32> = mesh
             .points
             .iter()
-            .map(|p| (Vec3::from(*p) - centre).length() + rng.range(-0.2, 0.2))
+            .map(|p| (Vec3::from(*p) - centre).length() + rng.range_f32(-0.2, 0.2))
             .collect();
         scene.refit_scalars(&values).unwrap();
         scene.validate().unwrap();
@@ -487,7 +470,7 @@ fn refit_equals_rebuild_for_scalars_and_positions() {
 
 #[test]
 fn bih_and_sah_and_leaf_sizes_give_identical_hits() {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let mesh = grid_mesh(8, 0.3, &mut rng, noisy_field);
     let rays = random_rays(&mut rng, 500, 7.0, false);
     let iso = [2.5f32];
@@ -565,7 +548,7 @@ fn degenerate_tets_and_nan_values_do_not_panic() {
         .unwrap();
         scene.validate().unwrap();
         scene.set_normals(TetNormals::Smooth);
-        let mut rng = Rng(5);
+        let mut rng = Rng::new(5);
         let mut rays = random_rays(&mut rng, 200, 2.0, false);
         rays.push(Ray::new(Vec3::new(0.2, 0.2, -1.0), Vec3::ZERO));
         rays.push(Ray::new(Vec3::NAN, Vec3::Z));
@@ -621,7 +604,7 @@ fn degenerate_tets_and_nan_values_do_not_panic() {
 
 #[test]
 fn smooth_normals_follow_the_gradient() {
-    let mut rng = Rng(1);
+    let mut rng = Rng::new(1);
     // Linear field: smooth and faceted normals are both the constant gradient direction.
     let mesh = grid_mesh(5, 0.2, &mut rng, |p, _| p.x + 2.0 * p.y + 4.0 * p.z);
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
@@ -662,9 +645,9 @@ fn smooth_normals_follow_the_gradient() {
 
 #[test]
 fn packets_of_16x16_need_far_fewer_box_tests_than_2x2() {
-    let mut rng = Rng(21);
+    let mut rng = Rng::new(21);
     let mesh = grid_mesh(16, 0.3, &mut rng, |p, r| {
-        (p - Vec3::splat(7.5)).length() + r.range(-0.3, 0.3)
+        (p - Vec3::splat(7.5)).length() + r.range_f32(-0.3, 0.3)
     });
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     // A 64×64 pinhole image in Morton order per 16×16 tile.
@@ -713,7 +696,7 @@ fn packets_of_16x16_need_far_fewer_box_tests_than_2x2() {
 #[test]
 fn time_steps_per_step_bvh_equals_refit() {
     use volume_core::tet::{StepScheme, TetStep, TetSteps};
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     let mesh = grid_mesh(6, 0.3, &mut rng, noisy_field);
     // 4 steps: scalars move; steps 1 and 3 also move the points; step 2 is back at the reference.
     let steps: Vec<TetStep> = (0..4)
@@ -782,7 +765,7 @@ fn time_steps_per_step_bvh_equals_refit() {
 fn renderer_depth_matches_brute_force() {
     use std::sync::atomic::AtomicBool;
     use volume_core::render::{Camera, RenderSettings, Surface, render};
-    let mut rng = Rng(23);
+    let mut rng = Rng::new(23);
     let mesh = grid_mesh(8, 0.3, &mut rng, noisy_field);
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     let cam = Camera::orbit(&scene.world_bounds(), 35.0, 25.0, 40.0);

@@ -1,4 +1,4 @@
-//! Tetrahedral (unstructured) mesh readers and writers (issue 4, thesis 004 ch. 8).
+//! Tetrahedral (unstructured) mesh readers and writers (thesis seed 004 ch. 8).
 //!
 //! Tour:
 //! - [`read_mesh`] opens a mesh by extension and returns a [`LoadedMesh`]: a

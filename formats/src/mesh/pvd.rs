@@ -1,4 +1,4 @@
-//! Time-varying meshes: a ParaView `.pvd` collection or numbered files (issue 4, thesis 004
+//! Time-varying meshes: a ParaView `.pvd` collection or numbered files (thesis seed 004
 //! §8.5). A [`MeshSeries`] is a list of `(time, path)` loaded lazily, one step at a time.
 //!
 //! All steps must share the first step's topology (point count and, after splitting, the same

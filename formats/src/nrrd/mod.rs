@@ -3,6 +3,7 @@
 //! - [`header`]: the header parser ([`parse_header`]), every field Teem writes.
 //! - [`geometry`]: axes → grid (oriented or uniform) and time steps.
 //! - `data`: decoding (raw memory-mapped, gzip, bzip2, ascii, hex), skips, data file lists.
+//! - [`NrrdSteps`]: the lazily loaded time steps of a 4D NRRD.
 //! - [`write_nrrd`]: NRRD0004, raw or gzip, written to a temporary file and renamed.
 //!
 //! A 3D file (or 4D with a leading size-1 axis) opens as a volume; a 4D file with a time axis,
@@ -13,6 +14,7 @@ pub mod geometry;
 pub mod header;
 
 mod data;
+mod steps;
 mod write;
 
 use std::fs::File;
@@ -25,6 +27,7 @@ pub use geometry::VolumeLayout;
 pub use header::{
     Center, DataFiles, Encoding, MAX_HEADER_BYTES, NrrdHeader, parse_header, parse_header_at,
 };
+pub use steps::NrrdSteps;
 pub use write::{NrrdEncoding, write_nrrd};
 
 use volume_core::RectilinearVolume;
@@ -79,7 +82,7 @@ pub fn read_nrrd(path: &Path) -> Result<Dataset, FormatError> {
             .map_err(|e| FormatError::geometry(path, e))?;
         return Ok(Dataset::Volume(volume));
     }
-    let loader = crate::series::NrrdSteps::new(path, plan, layout, step_bytes)?;
+    let loader = NrrdSteps::new(path, plan, layout, step_bytes)?;
     let series = TimeSeries::open(Arc::new(loader)).map_err(|e| FormatError::Series {
         path: path.to_path_buf(),
         reason: e.to_string(),

@@ -29,6 +29,7 @@ use crate::grid::{AnyGridScene, GridScene};
 use crate::intersect::{CellHit, Intersector, IsoSet};
 use crate::kdtree::KdTreeConfig;
 use crate::math::Ray;
+use crate::math::rng::Rng;
 use crate::render::NoStats;
 use crate::volume::{Grid, RectilinearVolume, VoxelData};
 use crate::voxel::Voxel;
@@ -253,28 +254,6 @@ fn trace<T: Voxel>(
         .collect())
 }
 
-/// Deterministic generator for the suite.
-struct Lcg(u64);
-
-impl Lcg {
-    fn unit(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
-        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-    }
-    fn index(&mut self, n: usize) -> usize {
-        ((self.unit() * n as f32) as usize).min(n.saturating_sub(1))
-    }
-}
-
 fn volume<T: Voxel>(
     dims: [usize; 3],
     origin: [f64; 3],
@@ -309,13 +288,13 @@ fn bounds(v: &RectilinearVolume) -> (Vec3, Vec3) {
 }
 
 /// Rays from outside the bounds towards random interior points.
-fn rays_from_outside(rng: &mut Lcg, lo: Vec3, hi: Vec3, n: usize) -> Vec<Ray> {
+fn rays_from_outside(rng: &mut Rng, lo: Vec3, hi: Vec3, n: usize) -> Vec<Ray> {
     let c = (lo + hi) * 0.5;
     let ext = (hi - lo).max(Vec3::ONE);
     (0..n)
         .map(|_| {
-            let dir = rng.vec(-1.0, 1.0).normalize_or(Vec3::X);
-            let target = c + rng.vec(-0.45, 0.45) * ext;
+            let dir = rng.vec3(-1.0, 1.0).normalize_or(Vec3::X);
+            let target = c + rng.vec3(-0.45, 0.45) * ext;
             Ray::new(target - dir * ext.length() * 1.5, dir)
         })
         .collect()
@@ -323,7 +302,7 @@ fn rays_from_outside(rng: &mut Lcg, lo: Vec3, hi: Vec3, n: usize) -> Vec<Ray> {
 
 /// The extreme suite (see the module docs).
 pub fn extreme_suite() -> Vec<Case> {
-    let mut rng = Lcg(0x1505_c0de);
+    let mut rng = Rng::new(0x1505_c0de);
     let mut cases = Vec::new();
 
     // Grazing rays: tangent to a distance-field sphere's silhouette, ±0.3 cell.
@@ -336,13 +315,13 @@ pub fn extreme_suite() -> Vec<Case> {
         });
         let rays = (0..400)
             .map(|_| {
-                let dir = rng.vec(-1.0, 1.0).normalize_or(Vec3::X);
+                let dir = rng.vec3(-1.0, 1.0).normalize_or(Vec3::X);
                 let side = dir.any_orthonormal_vector();
                 let side =
-                    (glam::Quat::from_axis_angle(dir, rng.range(0.0, std::f32::consts::TAU))
+                    (glam::Quat::from_axis_angle(dir, rng.range_f32(0.0, std::f32::consts::TAU))
                         * side)
                         .normalize();
-                let off = r + rng.range(-0.3, 0.3);
+                let off = r + rng.range_f32(-0.3, 0.3);
                 Ray::new(Vec3::splat(c) + side * off - dir * 15.0, dir)
             })
             .collect();
@@ -363,7 +342,7 @@ pub fn extreme_suite() -> Vec<Case> {
             .map(|i| {
                 let a = i % 3;
                 let sign = if (i / 3) % 2 == 0 { 1.0 } else { -1.0 };
-                let mut o = lo + rng.vec(0.0, 1.0) * (hi - lo);
+                let mut o = lo + rng.vec3(0.0, 1.0) * (hi - lo);
                 o[a] = if sign > 0.0 { lo[a] - 2.0 } else { hi[a] + 2.0 };
                 let mut d = Vec3::ZERO;
                 d[a] = sign;
@@ -383,8 +362,8 @@ pub fn extreme_suite() -> Vec<Case> {
         let rays = (0..300)
             .map(|i| {
                 let a = i % 3;
-                let mut o = lo + rng.vec(0.0, 1.0) * (hi - lo);
-                let mut d = rng.vec(-1.0, 1.0);
+                let mut o = lo + rng.vec3(0.0, 1.0) * (hi - lo);
+                let mut d = rng.vec3(-1.0, 1.0);
                 o[a] = rng.index(hi[a] as usize + 1) as f32;
                 d[a] = 0.0;
                 if i % 2 == 0 {
@@ -415,10 +394,10 @@ pub fn extreme_suite() -> Vec<Case> {
         let rays = (0..200)
             .map(|_| {
                 let m = rng.index(7) as f32 - 3.0;
-                let z = rng.range(0.0, 3.0);
+                let z = rng.range_f32(0.0, 3.0);
                 let d = Vec3::new(1.0, 1.0, 0.0).normalize();
                 let o = Vec3::new(m - 2.0, -2.0, z);
-                if rng.unit() < 0.5 {
+                if rng.unit_f32() < 0.5 {
                     Ray::new(o, d)
                 } else {
                     Ray::new(o + d * 30.0, -d)
@@ -476,9 +455,9 @@ pub fn extreme_suite() -> Vec<Case> {
 
     // NaN and ±inf voxels.
     {
-        let mut r2 = Lcg(99);
+        let mut r2 = Rng::new(99);
         let vol = volume([16, 14, 12], [0.0; 3], [1.0; 3], |i, j, k| {
-            let u = r2.unit();
+            let u = r2.unit_f32();
             if u < 0.05 {
                 f32::NAN
             } else if u < 0.07 {
@@ -546,8 +525,8 @@ pub fn extreme_suite() -> Vec<Case> {
     {
         let rays = (0..400)
             .map(|_| {
-                let o = lo + rng.vec(0.1, 0.9) * (hi - lo);
-                Ray::new(o, rng.vec(-1.0, 1.0).normalize_or(Vec3::Z))
+                let o = lo + rng.vec3(0.1, 0.9) * (hi - lo);
+                Ray::new(o, rng.vec3(-1.0, 1.0).normalize_or(Vec3::Z))
             })
             .collect();
         cases.push(Case {
@@ -570,7 +549,7 @@ fn more_cases(cases: &mut Vec<Case>) {
     // f32 tangent cells: v = (−1)^(i+j), iso 0. Rays x = y + m + δ touch the saddles
     // (δ = 0: double root) or cross the surface twice δ apart (two roots δ cells apart).
     {
-        let mut rng = Lcg(0x7a_9e47);
+        let mut rng = Rng::new(0x7a_9e47);
         let vol = volume([9, 9, 4], [0.0; 3], [1.0; 3], |i, j, _| {
             if (i + j) % 2 == 0 { 1.0f32 } else { -1.0 }
         });
@@ -578,10 +557,10 @@ fn more_cases(cases: &mut Vec<Case>) {
         let rays = (0..250)
             .map(|n| {
                 let m = rng.index(7) as f32 - 3.0 + deltas[n % deltas.len()];
-                let z = rng.range(0.0, 3.0);
+                let z = rng.range_f32(0.0, 3.0);
                 let d = Vec3::new(1.0, 1.0, 0.0).normalize();
                 let o = Vec3::new(m - 2.0, -2.0, z);
-                if rng.unit() < 0.5 {
+                if rng.unit_f32() < 0.5 {
                     Ray::new(o, d)
                 } else {
                     Ray::new(o + d * 30.0, -d)
@@ -599,7 +578,7 @@ fn more_cases(cases: &mut Vec<Case>) {
     // i16 data at integer isovalues: a plane and a block equal to the isovalue; rays along
     // grid lines (which then run inside the surface) and rays aimed at sample positions.
     {
-        let mut rng = Lcg(0x116_1e55);
+        let mut rng = Rng::new(0x116_1e55);
         let dims = [13usize, 11, 9];
         let vol = volume(dims, [0.0; 3], [1.0; 3], |i, j, k| {
             if k == 4 || (i >= 8 && j >= 6) {
@@ -619,7 +598,7 @@ fn more_cases(cases: &mut Vec<Case>) {
                 );
                 if n % 2 == 0 {
                     // Along a grid line parallel to axis a.
-                    let sign = if rng.unit() < 0.5 { 1.0 } else { -1.0 };
+                    let sign = if rng.unit_f32() < 0.5 { 1.0 } else { -1.0 };
                     let mut o = grid_point;
                     o[a] = if sign > 0.0 { lo[a] - 2.0 } else { hi[a] + 2.0 };
                     let mut d = Vec3::ZERO;
@@ -652,7 +631,7 @@ fn more_cases(cases: &mut Vec<Case>) {
 
     // Camera on sample positions, some inside a constant block equal to the isovalue.
     {
-        let mut rng = Lcg(0xca_3e7a);
+        let mut rng = Rng::new(0xca_3e7a);
         let dims = [14usize, 12, 10];
         let vol = volume(dims, [0.0; 3], [1.0; 3], |i, j, k| {
             if i < 5 && j < 5 {
@@ -673,7 +652,7 @@ fn more_cases(cases: &mut Vec<Case>) {
                     d[n / 4 % 3] = if n % 8 == 0 { 1.0 } else { -1.0 };
                     d
                 } else {
-                    rng.vec(-1.0, 1.0).normalize_or(Vec3::Y)
+                    rng.vec3(-1.0, 1.0).normalize_or(Vec3::Y)
                 };
                 Ray::new(o, d)
             })
@@ -688,17 +667,17 @@ fn more_cases(cases: &mut Vec<Case>) {
 
     // Rays in the volume's outer faces and along its outer edges.
     {
-        let mut rng = Lcg(0xb0_0a7d);
+        let mut rng = Rng::new(0xb0_0a7d);
         let rays = (0..300)
             .map(|n| {
                 let a = n % 3;
-                let mut o = lo + rng.vec(0.0, 1.0) * (hi - lo);
-                let mut d = rng.vec(-1.0, 1.0);
-                o[a] = if rng.unit() < 0.5 { lo[a] } else { hi[a] };
+                let mut o = lo + rng.vec3(0.0, 1.0) * (hi - lo);
+                let mut d = rng.vec3(-1.0, 1.0);
+                o[a] = if rng.unit_f32() < 0.5 { lo[a] } else { hi[a] };
                 d[a] = 0.0;
                 if n % 2 == 0 {
                     let b = (a + 1) % 3;
-                    o[b] = if rng.unit() < 0.5 { lo[b] } else { hi[b] };
+                    o[b] = if rng.unit_f32() < 0.5 { lo[b] } else { hi[b] };
                     d[b] = 0.0;
                 }
                 let d = d.normalize_or(Vec3::X);
@@ -715,7 +694,7 @@ fn more_cases(cases: &mut Vec<Case>) {
 
     // Values around 1e30 (1e30 ± 1.5e28): differences far below the values themselves.
     {
-        let mut rng = Lcg(0x1e30);
+        let mut rng = Rng::new(0x1e30);
         let vol = volume([16, 14, 12], [0.0; 3], [1.0; 3], |i, j, k| {
             1e30f32 + smooth(i, j, k) * 1e28
         });
@@ -729,7 +708,7 @@ fn more_cases(cases: &mut Vec<Case>) {
     }
 
     // Thin volumes along the other axes; 1×1×N has no cells at all.
-    let mut rng = Lcg(0x7e1_a0e5);
+    let mut rng = Rng::new(0x7e1_a0e5);
     for dims in [[12, 1, 12], [12, 12, 1], [15, 13, 2], [1, 1, 9]] {
         let vol = volume(dims, [0.0; 3], [1.0; 3], smooth);
         let (lo, hi) = bounds(&vol);
@@ -757,7 +736,7 @@ fn more_cases(cases: &mut Vec<Case>) {
 pub fn limit_cases() -> Vec<Case> {
     let mut cases = Vec::new();
     {
-        let mut rng = Lcg(0x11_3175);
+        let mut rng = Rng::new(0x11_3175);
         let vol = volume([9, 9, 4], [0.0; 3], [1.0; 3], |i, j, _| {
             if (i + j) % 2 == 0 { 1.0f32 } else { -1.0 }
         });
@@ -765,7 +744,7 @@ pub fn limit_cases() -> Vec<Case> {
             let rays = (0..200)
                 .map(|_| {
                     let m = rng.index(7) as f32 - 3.0;
-                    let z = rng.range(0.0, 3.0);
+                    let z = rng.range_f32(0.0, 3.0);
                     let d = Vec3::new(1.0, 1.0, 0.0).normalize();
                     Ray::new(Vec3::new(m - 2.0, -2.0, z), d)
                 })
@@ -779,7 +758,7 @@ pub fn limit_cases() -> Vec<Case> {
         }
     }
     {
-        let mut rng = Lcg(0x116_1e55);
+        let mut rng = Rng::new(0x116_1e55);
         let dims = [13usize, 11, 9];
         let vol = volume(dims, [0.0; 3], [1.0; 3], |i, j, k| {
             if k == 4 || (i >= 8 && j >= 6) {
@@ -796,7 +775,7 @@ pub fn limit_cases() -> Vec<Case> {
                     rng.index(dims[1]) as f32,
                     rng.index(dims[2]) as f32,
                 );
-                let d = rng.vec(-1.0, 1.0).normalize_or(Vec3::X);
+                let d = rng.vec3(-1.0, 1.0).normalize_or(Vec3::X);
                 Ray::new(p - d * (hi - lo).length(), d)
             })
             .collect();
@@ -854,8 +833,6 @@ pub fn run_extreme_suite(intersectors: &[Intersector]) -> Vec<(String, Vec<Accur
 #[cfg(test)]
 mod far_hit_probe {
     use super::*;
-    use crate::intersect::methods::{Exact, Reference};
-    use crate::intersect::{CellIntersector, CellSegment, cell_corners, frame::slab};
     use crate::render::{Camera, IsoScene, RayGen};
 
     /// Marschner–Lobb as data-samples generates it (f32, [-1, 1]³).
@@ -921,82 +898,5 @@ mod far_hit_probe {
     fn ml256_exact_has_no_far_missed_or_false_hits() {
         let (scene, rays) = ml256_rays((0..256).flat_map(|j| (0..256).map(move |i| (i, j))));
         assert_eq!(exact_disagreements(&scene, &rays), Vec::<usize>::new());
-    }
-
-    #[test]
-    #[ignore = "investigation of the far hits on ML 256³ (docs/accuracy.md)"]
-    fn print_ml256_far_hits() {
-        let vol = ml(256);
-        let any = AnyGridScene::new(&vol, Intersector::Exact);
-        let AnyGridScene::F32(scene) = &any else {
-            panic!("f32")
-        };
-        let cam = Camera::orbit(&scene.world_bounds(), 30.0, 20.0, 40.0);
-        let rg = RayGen::new(&cam, 256, 256);
-        let mut rays = vec![];
-        for j in 0..256 {
-            for i in 0..256 {
-                rays.push(rg.ray_at(i as f32 + 0.5, j as f32 + 0.5));
-            }
-        }
-        let isos = IsoSet::<f32>::new(&[0.5]);
-        let truth = trace(scene, &rays, &isos, Intersector::Reference);
-        let got = trace(scene, &rays, &isos, Intersector::Exact);
-        let mut far = 0;
-        for (idx, (g, t)) in got.iter().zip(&truth).enumerate() {
-            let (Some((g, sp)), Some((t, _))) = (g, t) else {
-                continue;
-            };
-            let dt = f64::from((g.t - t.t).abs()) * f64::from(*sp);
-            if dt <= FAR_HIT_CELLS {
-                continue;
-            }
-            far += 1;
-            println!(
-                "ray {idx} (pixel {}, {}): exact t {} cell {:?}, reference t {} cell {:?}, |dt| {dt:.3} cells",
-                idx % 256,
-                idx / 256,
-                g.t,
-                g.cell,
-                t.t,
-                t.cell
-            );
-            let local = scene.frame().to_local(&rays[idx]);
-            for (name, cell) in [("reference cell", t.cell), ("exact cell", g.cell)] {
-                let corners = cell_corners(scene.voxels(), scene.dims(), cell);
-                let (lo, hi) = scene.frame().cell_box(cell);
-                let Some((tn, tf)) = slab(&local, lo, hi, 0.0, f32::INFINITY) else {
-                    println!("  {name}: no slab overlap");
-                    continue;
-                };
-                let seg = CellSegment {
-                    origin: local.origin,
-                    dir: local.dir,
-                    inv_dir: local.inv_dir,
-                    lo,
-                    hi,
-                    t_near: tn,
-                    t_far: tf,
-                };
-                let (p0, dp) = seg.local_f64();
-                let g8 = corners.map(|v| f64::from(v) - 0.5);
-                let k = super::super::methods::cubic_f64(&g8, p0, dp);
-                let samples: Vec<String> = (0..=8)
-                    .map(|s| {
-                        let s = f64::from(s) / 8.0;
-                        format!("{:.2e}", ((k[0] * s + k[1]) * s + k[2]) * s + k[3])
-                    })
-                    .collect();
-                println!(
-                    "  {name}: t [{tn}, {tf}] exact {:?} reference {:?}; corners-iso {:?}; f64 cubic {k:?}; f(s/8) {samples:?}",
-                    Exact.first_root(&corners, 0.5, &seg),
-                    Reference.first_root(&corners, 0.5, &seg),
-                    corners.map(|v| v - 0.5),
-                );
-            }
-            let single = scene.first_hit(&rays[idx], 0.0, f32::INFINITY, &[0.5], &mut NoStats);
-            println!("  scene.first_hit (exact): {single:?}");
-        }
-        println!("{far} far hits");
     }
 }

@@ -725,15 +725,10 @@ mod tests {
 
     #[test]
     fn bernstein_early_out_changes_no_exact_result() {
-        // Random cells and segments (xorshift), near-tangent ones included: the early out
-        // must only skip cells the full method misses, and it must fire often.
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 40) as f32 / (1u64 << 24) as f32
-        };
+        // Random cells and segments, near-tangent ones included: the early out must only
+        // skip cells the full method misses, and it must fire often.
+        let mut rng = crate::math::rng::Rng::new(0x9e37_79b9_7f4a_7c15);
+        let mut rnd = || rng.unit_f32();
         let (mut skipped, mut total) = (0, 0);
         for case in 0..200_000 {
             let mut g: [f32; 8] = std::array::from_fn(|_| 2.0 * rnd() - 1.0);

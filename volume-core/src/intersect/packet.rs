@@ -190,23 +190,8 @@ pub fn first_roots_by_lane<T: Voxel, C: CellIntersector>(
 mod tests {
     use super::*;
     use crate::intersect::{Intersector, LocalRay, intersect_prepared_cell};
+    use crate::math::rng::Rng;
     use crate::render::CountStats;
-
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> u64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            self.0 >> 33
-        }
-
-        fn range(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * (self.next() as f32 / (1u64 << 31) as f32)
-        }
-    }
 
     /// Outcome counts of one comparison run (to check that the cases were exercised).
     #[derive(Default)]
@@ -219,27 +204,23 @@ mod tests {
     /// One random cell and packet: the lane-wise test equals the scalar test per lane
     /// (bit-identical `t`, same surface, same intersection count).
     fn compare_once<T: Voxel, C: CellIntersector>(
-        rng: &mut Lcg,
+        rng: &mut Rng,
         c: C,
-        corner: impl Fn(&mut Lcg) -> T,
+        corner: impl Fn(&mut Rng) -> T,
         isovalues: &[f32],
         seen: &mut Seen,
     ) {
         let lo = Vec3::new(
-            rng.range(-5.0, 5.0),
-            rng.range(-5.0, 5.0),
-            rng.range(-5.0, 5.0),
+            rng.range_f32(-5.0, 5.0),
+            rng.range_f32(-5.0, 5.0),
+            rng.range_f32(-5.0, 5.0),
         );
         let w = Vec3::new(
-            rng.range(0.2, 2.0),
-            rng.range(0.2, 2.0),
-            rng.range(0.2, 2.0),
+            rng.range_f32(0.2, 2.0),
+            rng.range_f32(0.2, 2.0),
+            rng.range_f32(0.2, 2.0),
         );
-        let hi = if rng.next().is_multiple_of(50) {
-            lo
-        } else {
-            lo + w
-        };
+        let hi = if rng.below(50) == 0 { lo } else { lo + w };
         let corners: [T; 8] = std::array::from_fn(|_| corner(rng));
         let isos = IsoSet::new(isovalues);
         let Some((min, max)) = super::super::corner_range(&corners) else {
@@ -257,62 +238,50 @@ mod tests {
         // sign per axis and no zero component, aimed near the cell.
         let eye = lo
             + w * Vec3::new(
-                rng.range(-3.0, 4.0),
-                rng.range(-3.0, 4.0),
-                rng.range(-3.0, 4.0),
+                rng.range_f32(-3.0, 4.0),
+                rng.range_f32(-3.0, 4.0),
+                rng.range_f32(-3.0, 4.0),
             );
         let sign = Vec3::new(
-            if rng.next().is_multiple_of(2) {
-                1.0
-            } else {
-                -1.0
-            },
-            if rng.next().is_multiple_of(2) {
-                1.0
-            } else {
-                -1.0
-            },
-            if rng.next().is_multiple_of(2) {
-                1.0
-            } else {
-                -1.0
-            },
+            if rng.below(2) == 0 { 1.0 } else { -1.0 },
+            if rng.below(2) == 0 { 1.0 } else { -1.0 },
+            if rng.below(2) == 0 { 1.0 } else { -1.0 },
         );
-        let shared_origin = !rng.next().is_multiple_of(3);
+        let shared_origin = !rng.below(3) == 0;
         let rays: [LocalRay; LANES] = std::array::from_fn(|_| {
             let o = if shared_origin {
                 eye
             } else {
                 eye + Vec3::new(
-                    rng.range(-0.3, 0.3),
-                    rng.range(-0.3, 0.3),
-                    rng.range(-0.3, 0.3),
+                    rng.range_f32(-0.3, 0.3),
+                    rng.range_f32(-0.3, 0.3),
+                    rng.range_f32(-0.3, 0.3),
                 )
             };
             let target = (lo + hi) * 0.5
                 + w * Vec3::new(
-                    rng.range(-0.8, 0.8),
-                    rng.range(-0.8, 0.8),
-                    rng.range(-0.8, 0.8),
+                    rng.range_f32(-0.8, 0.8),
+                    rng.range_f32(-0.8, 0.8),
+                    rng.range_f32(-0.8, 0.8),
                 );
             let d = (target - o).abs().max(Vec3::splat(1e-3)) * sign;
-            LocalRay::new(o, d * rng.range(0.5, 3.0))
+            LocalRay::new(o, d * rng.range_f32(0.5, 3.0))
         });
         let t_lo: [f32; LANES] = std::array::from_fn(|_| {
-            if rng.next().is_multiple_of(4) {
-                rng.range(0.0, 2.0)
+            if rng.below(4) == 0 {
+                rng.range_f32(0.0, 2.0)
             } else {
                 0.0
             }
         });
         let t_hi: [f32; LANES] = std::array::from_fn(|_| {
-            if rng.next().is_multiple_of(4) {
-                rng.range(0.0, 3.0)
+            if rng.below(4) == 0 {
+                rng.range_f32(0.0, 3.0)
             } else {
                 f32::INFINITY
             }
         });
-        let active = (rng.next() as u32) & 0xff | 1;
+        let active = rng.next_u32() & 0xff | 1;
         let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
             [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
         };
@@ -356,7 +325,7 @@ mod tests {
     #[test]
     fn lanes_equal_scalar_cell_tests_for_every_intersector() {
         for which in Intersector::ALL {
-            let mut rng = Lcg(7 + which.name().len() as u64);
+            let mut rng = Rng::new(7 + which.name().len() as u64);
             let mut seen = Seen::default();
             for n in 0..3000 {
                 let isos: &[f32] = match n % 3 {
@@ -367,7 +336,7 @@ mod tests {
                 crate::dispatch_intersector!(which, c => compare_once(
                     &mut rng,
                     c,
-                    |r: &mut Lcg| r.range(-1.0, 1.0),
+                    |r: &mut Rng| r.range_f32(-1.0, 1.0),
                     isos,
                     &mut seen,
                 ));
@@ -379,7 +348,7 @@ mod tests {
                 crate::dispatch_intersector!(which, c => compare_once(
                     &mut rng,
                     c,
-                    |r: &mut Lcg| 100 + (r.next() % (2 * spread + 1)) as i16 - spread as i16,
+                    |r: &mut Rng| 100 + r.below(2 * spread + 1) as i16 - spread as i16,
                     &[100.0, 101.5],
                     &mut seen,
                 ));
@@ -397,33 +366,27 @@ mod tests {
 
     #[test]
     fn lane_segments_equal_scalar_segments() {
-        let mut rng = Lcg(99);
+        let mut rng = Rng::new(99);
         for _ in 0..2000 {
             let lo = Vec3::new(
-                rng.range(-9.0, 9.0),
-                rng.range(-9.0, 9.0),
-                rng.range(-9.0, 9.0),
+                rng.range_f32(-9.0, 9.0),
+                rng.range_f32(-9.0, 9.0),
+                rng.range_f32(-9.0, 9.0),
             );
             let hi = lo
                 + Vec3::new(
-                    rng.range(0.1, 3.0),
-                    rng.range(0.1, 3.0),
-                    rng.range(0.1, 3.0),
+                    rng.range_f32(0.1, 3.0),
+                    rng.range_f32(0.1, 3.0),
+                    rng.range_f32(0.1, 3.0),
                 );
-            let sign = [0, 1, 2].map(|_| {
-                if rng.next().is_multiple_of(2) {
-                    1.0
-                } else {
-                    -1.0
-                }
-            });
+            let sign = [0, 1, 2].map(|_| if rng.below(2) == 0 { 1.0 } else { -1.0 });
             let rays: [LocalRay; LANES] = std::array::from_fn(|_| {
                 let o = Vec3::new(
-                    rng.range(-20.0, 20.0),
-                    rng.range(-20.0, 20.0),
-                    rng.range(-20.0, 20.0),
+                    rng.range_f32(-20.0, 20.0),
+                    rng.range_f32(-20.0, 20.0),
+                    rng.range_f32(-20.0, 20.0),
                 );
-                let d = Vec3::from(sign.map(|s| s * rng.range(0.01, 2.0)));
+                let d = Vec3::from(sign.map(|s| s * rng.range_f32(0.01, 2.0)));
                 LocalRay::new(o, d)
             });
             let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
@@ -440,7 +403,7 @@ mod tests {
             // Segment ends from the slab (so the face snapping is exercised) or arbitrary.
             let ends: [(f32, f32); LANES] = std::array::from_fn(|i| {
                 crate::intersect::frame::slab(&rays[i], lo, hi, -50.0, 50.0)
-                    .unwrap_or((rng.range(-5.0, 0.0), rng.range(0.0, 5.0)))
+                    .unwrap_or((rng.range_f32(-5.0, 0.0), rng.range_f32(0.0, 5.0)))
             });
             let seg = SegmentsX8 {
                 rays: &packet,

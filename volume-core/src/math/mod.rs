@@ -5,9 +5,11 @@
 //!   (the far distance is scaled by `1 + 2·gamma(3)` so that rounding never drops a hit).
 //! - [`Interval`]: closed `f32` intervals for ray-segment and value ranges.
 //! - [`float`]: floating-point error bounds (`gamma(n)`) and ulp stepping.
+//! - [`rng`]: the seeded deterministic generator of every test, benchmark and generated case.
 
 pub mod float;
 mod interval;
+pub mod rng;
 
 pub use interval::Interval;
 

@@ -959,14 +959,11 @@ mod tests {
 
     fn field(dims: [usize; 3], seed: u64) -> Vec<f32> {
         let mut v = Vec::with_capacity(dims.iter().product());
-        let mut s = seed;
+        let mut rng = crate::math::rng::Rng::new(seed);
         for k in 0..dims[2] {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    s = s
-                        .wrapping_mul(6_364_136_223_846_793_005)
-                        .wrapping_add(1_442_695_040_888_963_407);
-                    let noise = (s >> 40) as f32 / (1u64 << 24) as f32;
+                    let noise = rng.unit_f32();
                     v.push((i as f32 * 0.3).sin() * 10.0 + j as f32 * 0.5 - k as f32 + noise);
                 }
             }

@@ -1197,13 +1197,8 @@ mod tests {
     }
 
     fn rays(bounds: Aabb, n: usize) -> Vec<Ray> {
-        let mut s = 12_345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::math::rng::Rng::new(12_345);
+        let mut rnd = || rng.unit_f32();
         let c = (bounds.min + bounds.max) * 0.5;
         let ext = bounds.max - bounds.min;
         let mut out = Vec::new();

@@ -121,28 +121,8 @@ fn intersect_all(out: &mut Vec<Interval>, keep: Interval) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::rng::Rng;
     use glam::Vec3;
-
-    /// SplitMix64: a tiny seeded generator for reproducible random cases.
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^ (z >> 31)
-        }
-        fn unit(&mut self) -> f32 {
-            (self.next() >> 40) as f32 / (1u64 << 24) as f32
-        }
-        fn range(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * self.unit()
-        }
-        fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
-            Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-        }
-    }
 
     /// Point membership, the brute-force truth. Returns `None` when `p` lies within `tol` of a
     /// region boundary (where the interval ends may round either way).
@@ -176,25 +156,25 @@ mod tests {
 
     #[test]
     fn kept_intervals_match_point_sampling() {
-        let mut rng = Rng(7);
+        let mut rng = Rng::new(7);
         let (mut out, mut tmp) = (Vec::new(), Vec::new());
         let mut checked = 0u32;
         for case in 0..400 {
-            let n = 1 + (rng.next() % 4) as usize;
+            let n = 1 + rng.below(4) as usize;
             let clips: Vec<ClipRegion> = (0..n)
                 .map(|_| {
-                    if rng.next().is_multiple_of(3) {
+                    if rng.below(3) == 0 {
                         ClipRegion::Plane {
-                            normal: rng.vec(-1.0, 1.0),
-                            offset: rng.range(-1.0, 1.0),
+                            normal: rng.vec3(-1.0, 1.0),
+                            offset: rng.range_f32(-1.0, 1.0),
                         }
                     } else {
-                        let a = rng.vec(-2.0, 2.0);
-                        let b = rng.vec(-2.0, 2.0);
+                        let a = rng.vec3(-2.0, 2.0);
+                        let b = rng.vec3(-2.0, 2.0);
                         ClipRegion::Box {
                             min: a.min(b),
                             max: a.max(b),
-                            keep: if rng.next().is_multiple_of(2) {
+                            keep: if rng.below(2) == 0 {
                                 Keep::Inside
                             } else {
                                 Keep::Outside
@@ -203,12 +183,12 @@ mod tests {
                     }
                 })
                 .collect();
-            let mut dir = rng.vec(-1.0, 1.0);
+            let mut dir = rng.vec3(-1.0, 1.0);
             // Some axis-parallel rays too.
             if case % 5 == 0 {
                 dir.x = 0.0;
             }
-            let ray = Ray::new(rng.vec(-4.0, 4.0), dir.normalize());
+            let ray = Ray::new(rng.vec3(-4.0, 4.0), dir.normalize());
             let range = Interval::new(0.0, 12.0);
             kept_intervals(&ray, range, &clips, &mut out, &mut tmp);
             let outside_boxes = clips

@@ -532,13 +532,8 @@ mod tests {
 
     /// A jittered `n³`-point grid, 6 tets per cell, with a bumpy distance field.
     fn grid_scene(n: usize, seed: u64) -> TetScene {
-        let mut s = seed;
-        let mut f = move || {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (s >> 40) as f32 / (1u64 << 24) as f32 - 0.5
-        };
+        let mut rng = crate::math::rng::Rng::new(seed);
+        let mut f = move || rng.unit_f32() - 0.5;
         let id = |i: usize, j: usize, k: usize| (i + n * (j + n * k)) as u32;
         let (mut points, mut values) = (Vec::new(), Vec::new());
         for k in 0..n {

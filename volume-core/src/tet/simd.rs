@@ -247,26 +247,9 @@ mod tests {
     use glam::{Vec3, Vec4};
 
     use super::*;
+    use crate::math::rng::Rng;
     use crate::tet::mt;
     use crate::tet::traverse::slab;
-
-    struct Rng(u64);
-
-    impl Rng {
-        fn f(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-        fn range(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * self.f()
-        }
-        fn v3(&mut self, lo: f32, hi: f32) -> Vec3 {
-            Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-        }
-    }
 
     fn block_of(rays: &[Ray], t0: &[f32], t1: &[f32]) -> (RayBlock, f32x8) {
         let b = RayBlock::new(rays, t0);
@@ -282,11 +265,11 @@ mod tests {
 
     #[test]
     fn slab8_equals_the_scalar_slab_lane_by_lane() {
-        let mut rng = Rng(7);
+        let mut rng = Rng::new(7);
         let mut hits = 0;
         for trial in 0..3000 {
-            let lo = rng.v3(-2.0, 1.0);
-            let mut hi = lo + rng.v3(0.0, 2.0);
+            let lo = rng.vec3(-2.0, 1.0);
+            let mut hi = lo + rng.vec3(0.0, 2.0);
             if trial % 7 == 0 {
                 hi.y = lo.y; // flat box
             }
@@ -301,20 +284,20 @@ mod tests {
             let n = 1 + trial % 8;
             let rays: Vec<Ray> = (0..n)
                 .map(|i| {
-                    let mut d = rng.v3(-1.0, 1.0);
+                    let mut d = rng.vec3(-1.0, 1.0);
                     if (trial + i) % 5 == 0 {
                         d.x = 0.0; // infinite reciprocal
                     }
-                    Ray::new(rng.v3(-4.0, 4.0), d)
+                    Ray::new(rng.vec3(-4.0, 4.0), d)
                 })
                 .collect();
-            let t0: Vec<f32> = (0..n).map(|_| rng.range(-1.0, 2.0)).collect();
+            let t0: Vec<f32> = (0..n).map(|_| rng.range_f32(-1.0, 2.0)).collect();
             let t1: Vec<f32> = (0..n)
                 .map(|i| {
                     if i % 3 == 0 {
                         f32::INFINITY
                     } else {
-                        rng.range(0.0, 6.0)
+                        rng.range_f32(0.0, 6.0)
                     }
                 })
                 .collect();
@@ -333,7 +316,7 @@ mod tests {
     /// one origin through random points, vertices and edge midpoints.
     #[test]
     fn poly8_equals_the_scalar_isopolygon_test_lane_by_lane() {
-        let mut rng = Rng(11);
+        let mut rng = Rng::new(11);
         let (mut hits, mut uniform) = (0, 0);
         for trial in 0..3000 {
             let integer = trial % 4 == 0;
@@ -345,7 +328,7 @@ mod tests {
                     Vec4::new(0.0, 0.0, 2.0, 2.0),
                 ]
             } else {
-                std::array::from_fn(|_| rng.v3(-1.0, 1.0).extend(rng.range(0.0, 1.0)))
+                std::array::from_fn(|_| rng.vec3(-1.0, 1.0).extend(rng.range_f32(0.0, 1.0)))
             };
             let c = if integer {
                 0.5 + 0.5 * (trial % 3) as f32
@@ -359,14 +342,14 @@ mod tests {
             let origin = if integer {
                 Vec3::new(0.0, 0.0, -4.0 - (trial % 3) as f32)
             } else {
-                rng.v3(-1.0, 1.0) + Vec3::new(0.0, 0.0, -5.0)
+                rng.vec3(-1.0, 1.0) + Vec3::new(0.0, 0.0, -5.0)
             };
             let rays: Vec<Ray> = (0..8)
                 .map(|i| {
                     let target = match i % 4 {
                         0 => poly.v[i / 4 % k],
                         1 => (poly.v[i % k] + poly.v[(i + 1) % k]) * 0.5,
-                        _ => poly.v[0] + rng.v3(-0.5, 0.5),
+                        _ => poly.v[0] + rng.vec3(-0.5, 0.5),
                     };
                     if integer && i == 7 {
                         // Axis-aligned ray exactly through a vertex.

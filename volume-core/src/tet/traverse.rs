@@ -1029,13 +1029,8 @@ mod tests {
     /// partial blocks, infinite ranges).
     #[test]
     fn frustum_from_blocks_equals_per_ray_frustum() {
-        let mut seed = 3u64;
-        let mut f = move || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut rng = crate::math::rng::Rng::new(3);
+        let mut f = move || rng.unit_f32() * 2.0 - 1.0;
         for trial in 0..500 {
             let n = 1 + trial % 16;
             let rays: Vec<Ray> = (0..n)
@@ -1087,13 +1082,8 @@ mod tests {
     /// groups with zero and mixed-sign directions, partial packets).
     #[test]
     fn group_set_hits_equal_per_group_frustum_tests() {
-        let mut seed = 5u64;
-        let mut f = move || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut rng = crate::math::rng::Rng::new(5);
+        let mut f = move || rng.unit_f32() * 2.0 - 1.0;
         let (mut hit, mut miss) = (0, 0);
         for trial in 0..300 {
             let ng = 1 + trial % MAX_GROUPS;
