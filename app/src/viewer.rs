@@ -240,11 +240,6 @@ impl ViewerApp {
             || self.screenshot_job.is_some()
     }
 
-    /// The request of the running render job, if any.
-    pub fn running_request(&self) -> Option<&RenderRequest> {
-        self.render_job.as_ref().map(|r| &r.request)
-    }
-
     fn notify(&mut self, text: impl Into<String>, is_error: bool) {
         let text = text.into();
         if is_error {
