@@ -129,6 +129,7 @@ const SESSION_PROBE_BYTES: u64 = 64 * 1024;
 /// sections), not a raw file's layout sidecar. Reads at most the first 64 KiB: a file that
 /// fits is parsed; in a longer one the keys are looked for as text.
 pub fn is_session_file(path: &Path) -> bool {
+    const SECTIONS: [&str; 3] = ["files", "surfaces", "camera"];
     let is_json = path
         .extension()
         .and_then(|e| e.to_str())
@@ -142,7 +143,6 @@ pub fn is_session_file(path: &Path) -> bool {
     if read.is_err() {
         return false;
     }
-    const SECTIONS: [&str; 3] = ["files", "surfaces", "camera"];
     if prefix.len() as u64 <= SESSION_PROBE_BYTES {
         return serde_json::from_slice::<serde_json::Value>(&prefix).is_ok_and(|v| {
             v.get("version").is_some() && SECTIONS.iter().any(|k| v.get(k).is_some())

@@ -93,13 +93,14 @@ impl ViewerApp {
                     self.stats.steps_prefetched += 1;
                 }
             }
-            Finished::Rendered { ticket, result } => match result {
-                Ok(image) => self.finish_render(ctx, ticket, image),
-                Err(_) => {
+            Finished::Rendered { ticket, result } => {
+                if let Ok(image) = result {
+                    self.finish_render(ctx, ticket, image);
+                } else {
                     self.stats.renders_discarded += 1;
                     self.notify("rendering failed (the render thread panicked)", true);
                 }
-            },
+            }
             Finished::Picked(command) => self.commands.extend(command),
             Finished::ScreenshotSaved(result) => match result {
                 Ok(p) => self.notify(format!("screenshot saved to {}", p.display()), false),
