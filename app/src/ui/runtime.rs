@@ -134,6 +134,12 @@ impl Runtime {
             return None;
         }
         let lod_levels = self.lod.as_ref().map_or(0, |l| l.loaded_levels);
-        Some(RenderRequest::from_state(state, data, [w, h], scale, lod_levels))
+        Some(RenderRequest::from_state(
+            state,
+            data,
+            [w, h],
+            scale,
+            lod_levels,
+        ))
     }
 }
