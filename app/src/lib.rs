@@ -7,11 +7,10 @@
 //! - [`progress`]: indicatif bars that show only for long jobs on a terminal.
 //! - [`scene`]: [`scene::open_scene`] opens grids, tet meshes and `.isot` files as one
 //!   [`scene::AnyScene`] that the CLI and the viewer render through the same call.
-//! - [`ui`]: viewer state, background jobs, panels and the backend link.
-//! - [`viewer`]: the eframe app (`isoscope` with no subcommand).
+//! - [`ui`]: the viewer (`isoscope` with no subcommand): [`ui::app::ViewerApp`], its state,
+//!   background jobs, commands, panels and the backend link.
 
 pub mod cli;
 pub mod progress;
 pub mod scene;
 pub mod ui;
-pub mod viewer;

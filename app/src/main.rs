@@ -24,7 +24,7 @@ fn run_viewer(files: Vec<std::path::PathBuf>) -> anyhow::Result<()> {
     eframe::run_native(
         "isoscope",
         options,
-        Box::new(move |cc| Ok(Box::new(isoscope::viewer::ViewerApp::new(cc, files)))),
+        Box::new(move |cc| Ok(Box::new(isoscope::ui::app::ViewerApp::new(cc, files)))),
     )
     .map_err(|e| anyhow::anyhow!("cannot open the viewer window: {e}"))
 }

@@ -37,6 +37,10 @@
 //!   indicator, or [`OocData::wait_until_finished`] (not from a render thread) to wait for the
 //!   finest level the isovalues need. [`OocData::render_with_level`] also reports the level
 //!   the frame reached.
+//! - Each kind answers for itself: [`GridData`], [`TetData`] and [`OocData`] implement
+//!   [`SceneData`] (steps, prefetching, value range and histogram, view options, summary),
+//!   reached through [`AnyScene::data`]; callers never match on the kind. A mesh keeps its
+//!   prefetched steps in its own step cache, a grid series in the series' cache.
 //! - Time steps: [`AnyScene::step_count`], [`AnyScene::set_step`]: grids refit the kd-tree
 //!   (thesis §7.6), meshes refit the BVH (§8.5.2: value ranges only when only scalars change,
 //!   full 4D refit when points move).
@@ -48,20 +52,23 @@
 //!
 //! Nothing here prints or depends on clap: errors are `anyhow` with the file named.
 
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use formats::mesh::{LoadedMesh, MeshSeries, StepData};
-use volume_core::RectilinearVolume;
-use volume_core::grid::{AnyGridScene, StepSwitch};
+use volume_core::grid::AnyGridScene;
+use volume_core::{RectilinearVolume, VoxelType};
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::ooc::{AnyOocVolume, OocOptions};
 use volume_core::render::SceneVisitor;
 use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, render};
 use volume_core::series::TimeSeries;
+use volume_core::stats::Histogram;
 use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
 
 /// The three kinds of scene.
@@ -244,6 +251,94 @@ impl SceneVisitor for BoundsVisitor {
     }
 }
 
+/// How a time step was switched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepSwitch {
+    /// The acceleration structure was refit in place (thesis §7.6 for grids, §8.5.2 for meshes).
+    Refit,
+    /// The step had another shape: the structure was rebuilt.
+    Rebuilt,
+    /// The scene already held that step.
+    Unchanged,
+}
+
+/// What the isovalue sliders range over: the drawn values' range and histogram.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValueInfo {
+    pub value_range: (f64, f64),
+    pub histogram: Option<Histogram>,
+    /// What the histogram counts (shown under it), e.g. "262144 voxels".
+    pub histogram_note: String,
+}
+
+/// The render options a built scene holds and can switch in place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ViewOptions {
+    /// Cell intersector (grids and `.isot`).
+    pub intersector: Intersector,
+    /// Shading normals (meshes).
+    pub normals: TetNormals,
+}
+
+/// What every kind of data answers for itself. [`AnyScene`] forwards to it, so no caller
+/// matches on kinds; only the typed render ([`AnyScene::visit`]) stays a `match`.
+pub trait SceneData {
+    fn path(&self) -> &Path;
+    /// Time steps (1 for single files and `.isot`).
+    fn step_count(&self) -> usize;
+    /// The time step shown.
+    fn step(&self) -> usize;
+    /// The time of `step` as the file records it (the step index otherwise).
+    fn time_value(&self, step: usize) -> f64;
+    /// Smallest and largest finite value of what is drawn now; `None` if nothing is finite.
+    fn value_range(&self) -> Option<(f64, f64)>;
+    /// The value range and a `bins`-bin histogram of what is drawn now (scans every value,
+    /// or reads the file: call from a worker); `None` without finite values.
+    fn value_info(&self, bins: usize) -> Option<ValueInfo>;
+    /// Grid dims in voxels (`[0; 3]` for meshes).
+    fn dims(&self) -> [usize; 3];
+    /// Loads `step`'s data ahead of time (shared access, so frames keep rendering), so that
+    /// a later [`Self::set_step`] only refits.
+    fn prefetch(&self, step: usize) -> anyhow::Result<()>;
+    /// Makes `step` current: a refit where the structure allows.
+    fn set_step(&mut self, step: usize) -> anyhow::Result<StepSwitch>;
+    /// True when the scene already renders with `options`.
+    fn has_view_options(&self, options: &ViewOptions) -> bool;
+    fn set_view_options(&mut self, options: &ViewOptions);
+    /// Time to build the acceleration structure (the `.isot` open time for out-of-core).
+    fn build_time(&self) -> Duration;
+    /// Bytes of the acceleration structure (kd-tree, BVH nodes) or of the resident treelets.
+    fn structure_bytes(&self) -> u64;
+    /// One line for status bars and logs.
+    fn describe(&self) -> String;
+    /// Meshes: the point arrays that can be drawn (none for other kinds).
+    fn field_names(&self) -> Vec<&str> {
+        Vec::new()
+    }
+    /// Meshes: the drawn point array.
+    fn field(&self) -> Option<&str> {
+        None
+    }
+    /// Meshes: draws another point array (a value refit, no rebuild).
+    fn set_field(&mut self, name: &str) -> anyhow::Result<()> {
+        bail!("point array \"{name}\": only tet meshes have point arrays")
+    }
+    /// Out-of-core loader progress; `None` for in-core data.
+    fn loader_status(&self) -> Option<OocStatus> {
+        None
+    }
+}
+
+/// ", step 3 of 8" for series, nothing for single data sets.
+fn step_suffix(data: &dyn SceneData) -> String {
+    let steps = data.step_count();
+    if steps > 1 {
+        format!(", step {} of {steps}", data.step())
+    } else {
+        String::new()
+    }
+}
+
 impl AnyScene {
     pub fn kind(&self) -> SceneKind {
         match self {
@@ -253,22 +348,28 @@ impl AnyScene {
         }
     }
 
-    pub fn path(&self) -> &Path {
+    /// The kind's own answers ([`SceneData`]).
+    pub fn data(&self) -> &dyn SceneData {
         match self {
-            AnyScene::Grid(g) => &g.path,
-            AnyScene::Tet(t) => &t.path,
-            AnyScene::Ooc(o) => &o.path,
+            AnyScene::Grid(g) => g,
+            AnyScene::Tet(t) => t,
+            AnyScene::Ooc(o) => o,
         }
+    }
+
+    pub fn data_mut(&mut self) -> &mut dyn SceneData {
+        match self {
+            AnyScene::Grid(g) => g,
+            AnyScene::Tet(t) => t,
+            AnyScene::Ooc(o) => o,
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        self.data().path()
     }
 
     pub fn as_grid(&self) -> Option<&GridData> {
-        match self {
-            AnyScene::Grid(g) => Some(g),
-            _ => None,
-        }
-    }
-
-    pub fn as_grid_mut(&mut self) -> Option<&mut GridData> {
         match self {
             AnyScene::Grid(g) => Some(g),
             _ => None,
@@ -324,6 +425,22 @@ impl AnyScene {
         })
     }
 
+    /// [`Self::render`], with the finest out-of-core level the frame reached (`None` for
+    /// in-core data).
+    pub fn render_with_level(
+        &self,
+        camera: &Camera,
+        settings: &RenderSettings,
+        cancel: &AtomicBool,
+    ) -> Option<(Frame, Option<usize>)> {
+        match self {
+            AnyScene::Ooc(o) => o
+                .render_with_level(camera, settings, cancel)
+                .map(|(f, level)| (f, Some(level))),
+            s => s.render(camera, settings, cancel).map(|f| (f, None)),
+        }
+    }
+
     /// World-space bounds of the data.
     pub fn world_bounds(&self) -> Aabb {
         self.visit(BoundsVisitor)
@@ -332,11 +449,7 @@ impl AnyScene {
     /// Smallest and largest finite value of the current step (grids, `.isot`) or of the drawn
     /// array at the current step (meshes); `None` if nothing is finite.
     pub fn value_range(&self) -> Option<(f64, f64)> {
-        match self {
-            AnyScene::Grid(g) => g.value_range,
-            AnyScene::Tet(t) => t.value_range(),
-            AnyScene::Ooc(o) => o.value_range(),
-        }
+        self.data().value_range()
     }
 
     /// The middle of [`Self::value_range`]: the isovalue shown when none is given.
@@ -346,124 +459,37 @@ impl AnyScene {
 
     /// Time steps (1 for single files and `.isot`).
     pub fn step_count(&self) -> usize {
-        match self {
-            AnyScene::Grid(g) => g.series.as_ref().map_or(1, TimeSeries::step_count),
-            AnyScene::Tet(t) => t.series.as_ref().map_or(1, MeshSeries::len),
-            AnyScene::Ooc(_) => 1,
-        }
+        self.data().step_count()
     }
 
     pub fn step(&self) -> usize {
-        match self {
-            AnyScene::Grid(g) => g.step,
-            AnyScene::Tet(t) => t.step,
-            AnyScene::Ooc(_) => 0,
-        }
+        self.data().step()
     }
 
     /// The time of `step` as the file records it (the step index otherwise).
     pub fn time_value(&self, step: usize) -> f64 {
-        match self {
-            AnyScene::Grid(g) => g
-                .series
-                .as_ref()
-                .map_or(step as f64, |s| s.time_value(step)),
-            AnyScene::Tet(t) => t
-                .series
-                .as_ref()
-                .and_then(|s| s.steps.get(step))
-                .map_or(step as f64, |s| s.time),
-            AnyScene::Ooc(_) => step as f64,
-        }
+        self.data().time_value(step)
     }
 
-    /// Switches to another time step: a refit, unless a grid step changes dims or voxel
-    /// type. `None` when nothing changed (the step was current, or there are no steps).
-    pub fn set_step(&mut self, step: usize) -> anyhow::Result<Option<StepSwitch>> {
-        match self {
-            AnyScene::Grid(g) => g.set_step(step),
-            // Meshes always refit (their step keeps the connectivity).
-            AnyScene::Tet(t) => t.set_step(step).map(|()| Some(StepSwitch::Refit)),
-            AnyScene::Ooc(o) => check_step(step, 1, &o.path).map(|()| None),
-        }
-    }
-
-    /// The cell intersector (grids and `.isot`; meshes intersect isopolygons and ignore it).
-    pub fn set_intersector(&mut self, intersector: Intersector) {
-        match self {
-            AnyScene::Grid(g) => g.scene.set_intersector(intersector),
-            AnyScene::Tet(_) => {}
-            AnyScene::Ooc(o) => o.intersector = intersector,
-        }
+    /// Switches to another time step: a refit, not a rebuild, where the shape allows.
+    pub fn set_step(&mut self, step: usize) -> anyhow::Result<StepSwitch> {
+        self.data_mut().set_step(step)
     }
 
     /// Time to build the acceleration structure (the `.isot` open time for out-of-core).
     pub fn build_time(&self) -> Duration {
-        match self {
-            AnyScene::Grid(g) => g.scene.build_time(),
-            AnyScene::Tet(t) => t.build_time,
-            AnyScene::Ooc(o) => o.open_time,
-        }
+        self.data().build_time()
     }
 
     /// Bytes of the acceleration structure (kd-tree, BVH nodes) or of the resident treelets.
     pub fn structure_bytes(&self) -> u64 {
-        match self {
-            AnyScene::Grid(g) => g.scene.memory_bytes() as u64,
-            AnyScene::Tet(t) => t.scene.bvh_info().bytes as u64,
-            AnyScene::Ooc(o) => o.volume.resident_bytes(),
-        }
+        self.data().structure_bytes()
     }
 
     /// One line for status bars and logs, e.g. `tet mesh: 12000 tets, 2400 points, field
     /// "distance"`.
     pub fn describe(&self) -> String {
-        match self {
-            AnyScene::Grid(g) => {
-                let d = g.volume.dims();
-                let steps = self.step_count();
-                let series = if steps > 1 {
-                    format!(", step {} of {steps}", g.step)
-                } else {
-                    String::new()
-                };
-                format!(
-                    "grid {}x{}x{} {}{series}",
-                    d[0],
-                    d[1],
-                    d[2],
-                    g.volume.data.voxel_type()
-                )
-            }
-            AnyScene::Tet(t) => {
-                let steps = self.step_count();
-                let series = if steps > 1 {
-                    format!(", step {} of {steps}", t.step)
-                } else {
-                    String::new()
-                };
-                format!(
-                    "tet mesh: {} tets, {} points, field \"{}\"{series}",
-                    t.scene.num_tets(),
-                    t.scene.num_points(),
-                    t.field
-                )
-            }
-            AnyScene::Ooc(o) => {
-                let d = o.volume.meta().layout.dims();
-                let s = o.status();
-                format!(
-                    "out-of-core {}x{}x{} {}: level {}/{} loaded, {:.1} MiB resident",
-                    d[0],
-                    d[1],
-                    d[2],
-                    o.volume.meta().voxel_type,
-                    s.loaded_levels,
-                    s.level_count,
-                    s.resident_bytes as f64 / f64::from(1u32 << 20)
-                )
-            }
-        }
+        self.data().describe()
     }
 }
 
@@ -567,31 +593,121 @@ impl GridData {
         &self.scene
     }
 
-    pub fn scene_mut(&mut self) -> &mut AnyGridScene {
-        &mut self.scene
-    }
-
     pub fn series(&self) -> Option<&TimeSeries> {
         self.series.as_ref()
     }
 
-    /// `None` when the scene already holds `step`.
-    fn set_step(&mut self, step: usize) -> anyhow::Result<Option<StepSwitch>> {
+    /// Loads `step` through the series (which caches it) after checking its range.
+    fn load_step(&self, step: usize) -> anyhow::Result<Option<RectilinearVolume>> {
         let Some(series) = &self.series else {
-            return check_step(step, 1, &self.path).map(|()| None);
+            check_step(step, 1, &self.path)?;
+            return Ok(None);
         };
         check_step(step, series.step_count(), &self.path)?;
-        if step == self.step {
-            return Ok(None);
-        }
         let v = series
             .step(step)
             .with_context(|| format!("loading time step {step} of {}", self.path.display()))?;
-        let switch = self.scene.update_volume(&v);
+        Ok(Some(v))
+    }
+}
+
+/// Puts `volume` into `scene`: a refit when dims and voxel type stay, else a rebuild
+/// (`update_volume` decides and says which).
+fn update_grid_scene(scene: &mut AnyGridScene, volume: &RectilinearVolume) -> StepSwitch {
+    match scene.update_volume(volume) {
+        volume_core::grid::StepSwitch::Refit => StepSwitch::Refit,
+        volume_core::grid::StepSwitch::Rebuild => StepSwitch::Rebuilt,
+    }
+}
+
+/// A `bins`-bin histogram of every voxel of `volume` over `[lo, hi]`.
+fn grid_histogram(volume: &RectilinearVolume, lo: f64, hi: f64, bins: usize) -> Histogram {
+    volume_core::dispatch_voxels!(&volume.data, buf =>
+        Histogram::compute(buf.as_slice(), lo, hi, bins))
+}
+
+impl SceneData for GridData {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn step_count(&self) -> usize {
+        self.series.as_ref().map_or(1, TimeSeries::step_count)
+    }
+
+    fn step(&self) -> usize {
+        self.step
+    }
+
+    fn time_value(&self, step: usize) -> f64 {
+        self.series
+            .as_ref()
+            .map_or(step as f64, |s| s.time_value(step))
+    }
+
+    fn value_range(&self) -> Option<(f64, f64)> {
+        self.value_range
+    }
+
+    fn value_info(&self, bins: usize) -> Option<ValueInfo> {
+        let (lo, hi) = self.value_range?;
+        let d = self.volume.dims();
+        Some(ValueInfo {
+            value_range: (lo, hi),
+            histogram: Some(grid_histogram(&self.volume, lo, hi, bins)),
+            histogram_note: format!("all {}×{}×{} voxels of the step shown", d[0], d[1], d[2]),
+        })
+    }
+
+    fn dims(&self) -> [usize; 3] {
+        self.volume.dims()
+    }
+
+    fn prefetch(&self, step: usize) -> anyhow::Result<()> {
+        self.load_step(step).map(|_| ())
+    }
+
+    fn set_step(&mut self, step: usize) -> anyhow::Result<StepSwitch> {
+        if step == self.step {
+            check_step(step, self.step_count(), &self.path)?;
+            return Ok(StepSwitch::Unchanged);
+        }
+        let Some(v) = self.load_step(step)? else {
+            return Ok(StepSwitch::Unchanged);
+        };
+        let switch = update_grid_scene(&mut self.scene, &v);
         self.value_range = v.value_stats().finite_range;
         self.volume = v;
         self.step = step;
-        Ok(Some(switch))
+        Ok(switch)
+    }
+
+    fn has_view_options(&self, options: &ViewOptions) -> bool {
+        self.scene.intersector() == options.intersector
+    }
+
+    fn set_view_options(&mut self, options: &ViewOptions) {
+        self.scene.set_intersector(options.intersector);
+    }
+
+    fn build_time(&self) -> Duration {
+        self.scene.build_time()
+    }
+
+    fn structure_bytes(&self) -> u64 {
+        self.scene.memory_bytes() as u64
+    }
+
+    fn describe(&self) -> String {
+        let d = self.volume.dims();
+        format!(
+            "grid {}x{}x{} {}{}",
+            d[0],
+            d[1],
+            d[2],
+            self.volume.data.voxel_type(),
+            step_suffix(self)
+        )
     }
 }
 
@@ -613,7 +729,15 @@ pub struct TetData {
     field: String,
     scene: TetScene,
     build_time: Duration,
+    /// Steps read ahead (prefetched) or recently shown: a step switch then only refits.
+    step_cache: Mutex<StepCache>,
 }
+
+/// Mesh steps read ahead: `(step, data)`, oldest first.
+type StepCache = VecDeque<(usize, Arc<StepData>)>;
+
+/// Mesh steps kept in the step cache (the current one plus those ahead).
+const MESH_STEP_CACHE: usize = 4;
 
 impl TetData {
     fn open(
@@ -692,15 +816,12 @@ impl TetData {
             field,
             scene,
             build_time,
+            step_cache: Mutex::new(VecDeque::new()),
         })
     }
 
     pub fn scene(&self) -> &TetScene {
         &self.scene
-    }
-
-    pub fn scene_mut(&mut self) -> &mut TetScene {
-        &mut self.scene
     }
 
     /// Step 0 as read: all point arrays, the reference topology, skipped cells.
@@ -817,13 +938,129 @@ impl TetData {
         Ok(())
     }
 
-    fn set_step(&mut self, step: usize) -> anyhow::Result<()> {
-        if step == self.step {
-            let count = self.series.as_ref().map_or(1, MeshSeries::len);
-            return check_step(step, count, &self.path);
+    /// `step`'s data from the step cache, or read now and kept there (the oldest of
+    /// [`MESH_STEP_CACHE`] entries goes).
+    fn cached_step_data(&self, step: usize) -> anyhow::Result<Arc<StepData>> {
+        let cached = |cache: &StepCache| {
+            cache
+                .iter()
+                .find(|(s, _)| *s == step)
+                .map(|(_, d)| Arc::clone(d))
+        };
+        if let Some(d) = cached(&self.lock_step_cache()) {
+            return Ok(d);
         }
-        let data = self.load_step_data(step)?;
-        self.set_step_from(step, &data)
+        // Read without holding the lock: a prefetch may read another step meanwhile.
+        let data = Arc::new(self.load_step_data(step)?);
+        let mut cache = self.lock_step_cache();
+        cache.retain(|(s, _)| *s != step);
+        if cache.len() >= MESH_STEP_CACHE {
+            cache.pop_front();
+        }
+        cache.push_back((step, Arc::clone(&data)));
+        Ok(data)
+    }
+
+    fn lock_step_cache(&self) -> std::sync::MutexGuard<'_, StepCache> {
+        // The cache holds only finished reads: one left by a panicked thread is still valid.
+        self.step_cache
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+impl SceneData for TetData {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn step_count(&self) -> usize {
+        self.series.as_ref().map_or(1, MeshSeries::len)
+    }
+
+    fn step(&self) -> usize {
+        self.step
+    }
+
+    fn time_value(&self, step: usize) -> f64 {
+        self.series
+            .as_ref()
+            .and_then(|s| s.steps.get(step))
+            .map_or(step as f64, |s| s.time)
+    }
+
+    fn value_range(&self) -> Option<(f64, f64)> {
+        TetData::value_range(self)
+    }
+
+    fn value_info(&self, bins: usize) -> Option<ValueInfo> {
+        let (lo, hi) = TetData::value_range(self)?;
+        let values = self.field_values()?;
+        Some(ValueInfo {
+            value_range: (lo, hi),
+            histogram: Some(Histogram::compute(values, lo, hi, bins)),
+            histogram_note: format!(
+                "the {} point values of \"{}\" at the step shown",
+                values.len(),
+                self.field
+            ),
+        })
+    }
+
+    fn dims(&self) -> [usize; 3] {
+        [0; 3]
+    }
+
+    fn prefetch(&self, step: usize) -> anyhow::Result<()> {
+        self.cached_step_data(step).map(|_| ())
+    }
+
+    fn set_step(&mut self, step: usize) -> anyhow::Result<StepSwitch> {
+        if step == self.step {
+            check_step(step, SceneData::step_count(self), &self.path)?;
+            return Ok(StepSwitch::Unchanged);
+        }
+        let data = self.cached_step_data(step)?;
+        self.set_step_from(step, &data)?;
+        Ok(StepSwitch::Refit)
+    }
+
+    fn has_view_options(&self, options: &ViewOptions) -> bool {
+        self.scene.normals() == options.normals
+    }
+
+    fn set_view_options(&mut self, options: &ViewOptions) {
+        self.scene.set_normals(options.normals);
+    }
+
+    fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    fn structure_bytes(&self) -> u64 {
+        self.scene.bvh_info().bytes as u64
+    }
+
+    fn describe(&self) -> String {
+        format!(
+            "tet mesh: {} tets, {} points, field \"{}\"{}",
+            self.scene.num_tets(),
+            self.scene.num_points(),
+            self.field,
+            step_suffix(self)
+        )
+    }
+
+    fn field_names(&self) -> Vec<&str> {
+        TetData::field_names(self)
+    }
+
+    fn field(&self) -> Option<&str> {
+        Some(&self.field)
+    }
+
+    fn set_field(&mut self, name: &str) -> anyhow::Result<()> {
+        TetData::set_field(self, name)
     }
 }
 
@@ -939,6 +1176,136 @@ impl OocData {
         self.volume
             .render_with_level(self.intersector, camera, settings, cancel)
     }
+}
+
+impl SceneData for OocData {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn step_count(&self) -> usize {
+        1
+    }
+
+    fn step(&self) -> usize {
+        0
+    }
+
+    fn time_value(&self, step: usize) -> f64 {
+        step as f64
+    }
+
+    fn value_range(&self) -> Option<(f64, f64)> {
+        OocData::value_range(self)
+    }
+
+    /// The histogram of the coarsest level (the top treelet): the finest data is never
+    /// resident as a whole, and the coarse level subsamples the full volume (thesis 004
+    /// §7.7), so its histogram has the full one's shape. A file that cannot be read again
+    /// gives the range without a histogram, and says why.
+    fn value_info(&self, bins: usize) -> Option<ValueInfo> {
+        let (lo, hi) = OocData::value_range(self)?;
+        Some(
+            coarsest_level_histogram(&self.path, lo, hi, bins).unwrap_or_else(|e| ValueInfo {
+                value_range: (lo, hi),
+                histogram: None,
+                histogram_note: format!("no histogram: {e}"),
+            }),
+        )
+    }
+
+    fn dims(&self) -> [usize; 3] {
+        self.volume
+            .meta()
+            .layout
+            .dims()
+            .map(|x| usize::try_from(x).unwrap_or(usize::MAX))
+    }
+
+    fn prefetch(&self, step: usize) -> anyhow::Result<()> {
+        check_step(step, 1, &self.path)
+    }
+
+    fn set_step(&mut self, step: usize) -> anyhow::Result<StepSwitch> {
+        check_step(step, 1, &self.path)?;
+        Ok(StepSwitch::Unchanged)
+    }
+
+    fn has_view_options(&self, options: &ViewOptions) -> bool {
+        self.intersector == options.intersector
+    }
+
+    fn set_view_options(&mut self, options: &ViewOptions) {
+        self.intersector = options.intersector;
+    }
+
+    fn build_time(&self) -> Duration {
+        self.open_time
+    }
+
+    fn structure_bytes(&self) -> u64 {
+        self.volume.resident_bytes()
+    }
+
+    fn describe(&self) -> String {
+        let d = self.volume.meta().layout.dims();
+        let s = self.status();
+        format!(
+            "out-of-core {}x{}x{} {}: level {}/{} loaded, {:.1} MiB resident",
+            d[0],
+            d[1],
+            d[2],
+            self.volume.meta().voxel_type,
+            s.loaded_levels,
+            s.level_count,
+            s.resident_bytes as f64 / f64::from(1u32 << 20)
+        )
+    }
+
+    fn loader_status(&self) -> Option<OocStatus> {
+        Some(self.status())
+    }
+}
+
+/// `.isot`: the value range and a `bins`-bin histogram of the coarsest level's voxels (the
+/// top treelet, read again from the file).
+fn coarsest_level_histogram(
+    path: &Path,
+    lo: f64,
+    hi: f64,
+    bins: usize,
+) -> Result<ValueInfo, String> {
+    use volume_core::ooc::{TreeletRecord, TreeletStorage as _};
+    let file = formats::treelet::IsotFile::open(path).map_err(|e| e.to_string())?;
+    let meta = file.meta();
+    let bytes = file
+        .fetch(0, 0)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    macro_rules! top {
+        ($t:ty) => {{
+            let r = TreeletRecord::<$t>::decode(meta, 0, 0, &bytes)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            (Histogram::compute(&r.voxels, lo, hi, bins), r.voxel_dims)
+        }};
+    }
+    let (histogram, d) = match meta.voxel_type {
+        VoxelType::U8 => top!(u8),
+        VoxelType::I8 => top!(i8),
+        VoxelType::U16 => top!(u16),
+        VoxelType::I16 => top!(i16),
+        VoxelType::U32 => top!(u32),
+        VoxelType::I32 => top!(i32),
+        VoxelType::F32 => top!(f32),
+        VoxelType::F64 => top!(f64),
+    };
+    Ok(ValueInfo {
+        value_range: (lo, hi),
+        histogram: Some(histogram),
+        histogram_note: format!(
+            "the {}×{}×{} voxels of the coarsest level (top treelet)",
+            d[0], d[1], d[2]
+        ),
+    })
 }
 
 #[cfg(test)]
@@ -1073,7 +1440,7 @@ mod tests {
         let e = open_scene_with(&p, &SceneOptions::default(), &control).unwrap_err();
         assert!(is_cancelled(&e), "{e:#}");
         cancel.store(false, std::sync::atomic::Ordering::Relaxed);
-        let seen = std::sync::Mutex::new(Vec::new());
+        let seen = Mutex::new(Vec::new());
         let record = |f: f32| seen.lock().unwrap().push(f);
         let control = OpenControl {
             cancel: &cancel,

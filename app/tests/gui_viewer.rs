@@ -20,14 +20,14 @@ use egui::accesskit::Role;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable as _;
 use glam::Vec3;
+use isoscope::ui::app::ViewerApp;
 use isoscope::ui::backend::{
     Backend, CoreBackend, DataKindLabel, LoadedData, OpenChoices, PreparedScene, RenderRequest,
     RenderedImage, StepSwitch,
 };
+use isoscope::ui::commands::Command;
 use isoscope::ui::jobs::JobControl;
-use isoscope::ui::panels::Command;
 use isoscope::ui::state::{KeepSide, RawLayoutState, ViewerState};
-use isoscope::viewer::ViewerApp;
 use volume_core::math::Aabb;
 
 #[derive(Default)]
@@ -231,6 +231,15 @@ fn step_until(h: &mut Harness<'_, ViewerApp>, what: &str, done: impl Fn(&ViewerA
         h.step();
         std::thread::sleep(Duration::from_millis(5));
     }
+}
+
+/// Waits until the session file is written (a job: the UI thread does no file I/O).
+fn wait_for_saved_session(h: &mut Harness<'_, ViewerApp>) {
+    step_until(h, "the session saved", |app| {
+        app.notifications()
+            .iter()
+            .any(|n| n.text.starts_with("session saved"))
+    });
 }
 
 /// Waits until a full-resolution frame of the current state is on screen.
@@ -511,7 +520,7 @@ fn a_session_saves_and_restores() {
     h.state_mut().state.render.shadows = true;
     let saved = h.state().state.clone();
     h.state_mut().push(Command::SaveSession(path.clone()));
-    h.run_steps(1);
+    wait_for_saved_session(&mut h);
     assert_eq!(ViewerState::load(&path).unwrap(), saved);
 
     h.state_mut().push(Command::RemoveSurface(1));
@@ -855,7 +864,7 @@ fn the_point_array_picker_redraws_with_the_chosen_array() {
     // The session records the choice.
     let session = dir.path().join("session.json");
     h.state_mut().push(Command::SaveSession(session.clone()));
-    h.run_steps(1);
+    wait_for_saved_session(&mut h);
     assert_eq!(
         ViewerState::load(&session).unwrap().field.as_deref(),
         Some("gaussians")

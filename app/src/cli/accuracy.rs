@@ -1,8 +1,8 @@
 //! `isoscope accuracy [-o docs/accuracy.md] [--images docs/images/accuracy] [--json FILE]
 //! [--size WxH] [--frames N] [--threads T] [--quick]`
 //!
-//! Writes the speed/accuracy report of the five cell intersectors (issue 3, thesis seed 004
-//! §7.2.2) as Markdown, with difference images and a JSON twin:
+//! Writes the speed/accuracy report of the five cell intersectors (thesis seed 004 §7.2.2)
+//! as Markdown, with difference images and a JSON twin:
 //! - on Marschner–Lobb 128³ and 256³ (`f32` and `u8`) and the CT-like phantom: Mrays/s of
 //!   full frames (kd-tree packets, shading included; [`super::bench::time_config`]) and, over
 //!   every pixel's primary ray, mean/max |Δt| against the `f64` reference in cell units,
@@ -557,7 +557,7 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
     );
     let _ = writeln!(
         s,
-        "The five cell intersectors of issue 3 (thesis seed 004 §7.2.2) against the f64 \
+        "The five cell intersectors (thesis seed 004 §7.2.2) against the f64 \
          reference, on the same kd-tree and the same rays. **|Δt|** is the distance between \
          the method's first hit and the reference's along the ray, in **cell units** (one \
          cell edge on a uniform axis), over the rays both hit. **% missed**: reference hits \
@@ -590,7 +590,7 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
     let _ = writeln!(s, "## Extreme suite (all cases)\n");
     let _ = writeln!(
         s,
-        "The cases of issue 3 (`volume_core::intersect::accuracy::extreme_suite`, seeded): \
+        "The extreme cases (`volume_core::intersect::accuracy::extreme_suite`, seeded): \
          grazing and axis-parallel rays, rays along cell faces and edges (inside the volume \
          and on its outer faces), tangent (double-root) cells in u8 and f32 with \
          near-tangent rays, triple-root cells, integer data (u8, i16) at integer isovalues \

@@ -13,15 +13,17 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use glam::{DVec3, Vec3};
 use volume_core::math::Aabb;
 use volume_core::stats::Histogram;
-use volume_core::volume::Grid;
+
+use crate::scene::SceneKind;
+pub use crate::scene::{StepSwitch, ValueInfo};
 
 use super::camera::CameraPose;
 use super::jobs::JobControl;
 use super::state::{
     ClipBoxState, ClipPlaneState, IntersectorChoice, RawLayoutState, RenderOptions, SurfaceState,
+    ViewerState,
 };
 
 /// Everything a frame depends on besides the scene.
@@ -48,6 +50,33 @@ pub struct RenderRequest {
     pub lod_levels: usize,
 }
 
+impl RenderRequest {
+    /// What `state` asks of `data` at `width`×`height` pixels and progressive `scale`, with
+    /// `lod_levels` out-of-core levels loaded.
+    pub fn from_state(
+        state: &ViewerState,
+        data: &LoadedData,
+        [width, height]: [u32; 2],
+        scale: u32,
+        lod_levels: usize,
+    ) -> Self {
+        Self {
+            width,
+            height,
+            scale,
+            camera: CameraPose::from_state(&state.camera, &data.bounds),
+            bounds: data.bounds,
+            surfaces: state.surfaces.clone(),
+            clip_boxes: state.clip_boxes.clone(),
+            clip_planes: state.clip_planes.clone(),
+            options: state.render,
+            step: state.time.step,
+            field: data.field.clone(),
+            lod_levels,
+        }
+    }
+}
+
 /// A finished frame.
 #[derive(Debug, Clone)]
 pub struct RenderedImage {
@@ -62,29 +91,8 @@ pub struct RenderedImage {
     pub lod_level: Option<usize>,
 }
 
-/// How a time step was switched.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum StepSwitch {
-    /// The acceleration structure was refit in place (thesis §7.6 for grids, §8.5.2 for meshes).
-    Refit,
-    /// The step had another shape: the structure was rebuilt.
-    Rebuilt,
-    /// The scene already held that step.
-    Unchanged,
-}
-
-/// Out-of-core loading progress (a level/progress indicator).
-#[derive(Debug, Clone, PartialEq)]
-pub struct LodStatus {
-    /// Levels published for the current isovalues (1 = the top treelet only).
-    pub loaded_levels: usize,
-    pub level_count: usize,
-    pub resident_bytes: u64,
-    /// The loader is idle for the current isovalues.
-    pub finished: bool,
-    pub budget_limited: bool,
-    pub error: Option<String>,
-}
+/// Out-of-core loading progress (a level/progress indicator), as the scene reports it.
+pub type LodStatus = crate::scene::OocStatus;
 
 /// A dataset with its built scene: renders any request, switches steps.
 pub trait PreparedScene: Send + Sync {
@@ -131,17 +139,18 @@ pub enum DataKindLabel {
     OutOfCore,
 }
 
+impl From<SceneKind> for DataKindLabel {
+    fn from(kind: SceneKind) -> Self {
+        match kind {
+            SceneKind::Grid => Self::Grid,
+            SceneKind::Tet => Self::Tet,
+            SceneKind::Ooc => Self::OutOfCore,
+        }
+    }
+}
+
 /// Number of histogram bins under the isovalue sliders.
 pub const HISTOGRAM_BINS: usize = 128;
-
-/// What the isovalue sliders range over: the drawn values' range and histogram.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ValueInfo {
-    pub value_range: (f64, f64),
-    pub histogram: Option<Histogram>,
-    /// What the histogram counts (shown under it), e.g. "262144 voxels".
-    pub histogram_note: String,
-}
 
 /// A loaded dataset: its scene and what the panels show about it.
 #[derive(Clone)]
@@ -184,23 +193,6 @@ impl LoadedData {
     pub fn time_value(&self, step: usize) -> f64 {
         self.times.get(step).copied().unwrap_or(step as f64)
     }
-}
-
-/// World-space bounds of a grid: its box, through the `world_from_grid` affine when present.
-pub fn grid_world_bounds(grid: &Grid) -> Aabb {
-    let (lo, hi) = grid.grid_bounds();
-    let affine = grid.world_from_grid();
-    let mut b = Aabb::EMPTY;
-    for corner in 0..8u32 {
-        let p = DVec3::new(
-            if corner & 1 == 0 { lo.x } else { hi.x },
-            if corner & 2 == 0 { lo.y } else { hi.y },
-            if corner & 4 == 0 { lo.z } else { hi.z },
-        );
-        let w = affine.map_or(p, |a| a.transform_point3(p));
-        b = b.grow(Vec3::new(w.x as f32, w.y as f32, w.z as f32));
-    }
-    b
 }
 
 /// How to build a scene (the render options that are fixed at build time are only initial

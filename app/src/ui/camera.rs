@@ -1,7 +1,7 @@
 //! From the orbit [`CameraState`] to a world-space camera pose, and the projection of world
 //! points into the image (for the clip-box outline drawn over the ray-traced picture).
 //!
-//! The projection follows the renderer's pixel convention (issue 3): pixel (i, j), row 0 at
+//! The projection follows the renderer's pixel convention (`volume_core::render::Camera`): pixel (i, j), row 0 at
 //! the top, is hit by the ray through `u = (2(i+0.5)/W − 1)·tan(vfov/2)·W/H`,
 //! `v = (1 − 2(j+0.5)/H)·tan(vfov/2)`; so a point at view coordinates (x, y, z) lands at
 //! `i = (x/z / (tan·W/H) + 1)·W/2`, `j = (1 − y/z / tan)·H/2` in continuous pixel units.
@@ -177,7 +177,7 @@ mod tests {
         Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0))
     }
 
-    /// The ray of pixel (i, j) by the renderer's convention (issue 3), built independently.
+    /// The ray of pixel (i, j) by the renderer's convention, built independently.
     fn pixel_ray_dir(pose: &CameraPose, i: f32, j: f32, w: f32, h: f32) -> Vec3 {
         let b = pose.basis();
         let t = (0.5 * pose.vfov_deg.to_radians()).tan();

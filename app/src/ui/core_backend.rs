@@ -4,22 +4,20 @@
 //! the embedded sample comes from `data_samples`, and frames from [`AnyScene::render`] — the
 //! same open and render calls the CLI makes.
 //!
-//! Time steps are refits, not rebuilds: grids through `AnyGridScene::update_volume` (the
-//! series keeps prefetched steps in its cache), meshes through `TetScene::refit_scalars` /
-//! `refit_positions` with step data prefetched here.
+//! Each kind of data answers for itself ([`crate::scene::SceneData`]: step switches,
+//! prefetching, value histograms, view options); this file only adds the locking that lets
+//! frames render while a job switches a step, and turns a [`RenderRequest`] into the
+//! renderer's camera and settings.
 
-use std::collections::VecDeque;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex, RwLock};
 
-use formats::mesh::StepData;
 use glam::Vec3;
 use volume_core::intersect::Intersector;
 use volume_core::render::{
     Camera, ClipRegion, Keep, Light, LightKind, Projection, RenderSettings, Surface,
 };
-use volume_core::stats::Histogram;
 use volume_core::tet::TetNormals;
 use volume_core::{RectilinearVolume, VoxelType};
 
@@ -30,13 +28,12 @@ use super::backend::{
 use super::camera::{bounding_radius, clip_box_world};
 use super::jobs::JobControl;
 use super::state::{IntersectorChoice, KeepSide, RawLayoutState};
-use crate::scene::{AnyScene, GridData, OpenControl, SceneOptions, is_cancelled, open_scene_with};
+use crate::scene::{
+    AnyScene, GridData, OpenControl, SceneOptions, ViewOptions, is_cancelled, open_scene_with,
+};
 
 /// Edge length of the embedded default dataset.
 pub const DEFAULT_SAMPLE_SIZE: usize = 64;
-
-/// Mesh steps kept after prefetching (the current one plus those ahead).
-const MESH_STEP_CACHE: usize = 4;
 
 /// The real library.
 #[derive(Debug, Default, Clone, Copy)]
@@ -142,18 +139,10 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
     }
 }
 
-/// Mesh steps loaded ahead (prefetched); a step switch hands the step's data to
-/// `TetData::set_step_from`, which refits and updates the step, values and value range.
-struct MeshTrack {
-    /// Prefetched steps: `(step, data)`.
-    cache: VecDeque<(usize, Arc<StepData>)>,
-}
-
 /// An opened scene of any kind behind a lock: renders take the read lock, step switches
 /// and intersector or normal changes the write lock (from jobs, never the UI thread).
 pub struct CorePrepared {
     scene: RwLock<AnyScene>,
-    mesh: Mutex<MeshTrack>,
     /// Last out-of-core status, returned while the scene is locked for writing.
     lod: Mutex<Option<LodStatus>>,
 }
@@ -163,84 +152,47 @@ fn poisoned<T>(_: T) -> String {
     "the scene lock is poisoned (a render thread panicked)".to_string()
 }
 
+/// The options a request asks the built scene to hold.
+fn view_options(request: &RenderRequest) -> ViewOptions {
+    ViewOptions {
+        intersector: intersector(request.options.intersector),
+        normals: normals(request.options.smooth_normals),
+    }
+}
+
+fn normals(smooth: bool) -> TetNormals {
+    if smooth {
+        TetNormals::Smooth
+    } else {
+        TetNormals::Faceted
+    }
+}
+
 impl CorePrepared {
     pub fn new(scene: AnyScene) -> Self {
         Self {
             scene: RwLock::new(scene),
-            mesh: Mutex::new(MeshTrack {
-                cache: VecDeque::new(),
-            }),
             lod: Mutex::new(None),
         }
     }
 
-    /// Read access to the scene (tests, summaries).
-    pub fn with_scene<R>(&self, f: impl FnOnce(&AnyScene) -> R) -> Result<R, String> {
-        Ok(f(&*self.scene.read().map_err(poisoned)?))
-    }
-
     /// Switches the intersector and tet normals in place when the request asks for others.
     fn apply_options(&self, request: &RenderRequest) -> Result<(), String> {
-        let want_isect = intersector(request.options.intersector);
-        let want_normals = if request.options.smooth_normals {
-            TetNormals::Smooth
-        } else {
-            TetNormals::Faceted
-        };
-        let up_to_date = {
-            let s = self.scene.read().map_err(poisoned)?;
-            match &*s {
-                AnyScene::Grid(g) => g.scene().intersector() == want_isect,
-                AnyScene::Ooc(o) => o.intersector() == want_isect,
-                AnyScene::Tet(t) => t.scene().normals() == want_normals,
-            }
-        };
-        if !up_to_date {
-            let mut s = self.scene.write().map_err(poisoned)?;
-            s.set_intersector(want_isect);
-            if let Some(t) = s.as_tet_mut() {
-                t.set_normals(want_normals);
-            }
+        let want = view_options(request);
+        if !self
+            .scene
+            .read()
+            .map_err(poisoned)?
+            .data()
+            .has_view_options(&want)
+        {
+            self.scene
+                .write()
+                .map_err(poisoned)?
+                .data_mut()
+                .set_view_options(&want);
         }
         Ok(())
-    }
-
-    fn load_mesh_step(&self, step: usize) -> Result<Arc<StepData>, String> {
-        if let Some(d) = self
-            .mesh
-            .lock()
-            .map_err(poisoned)?
-            .cache
-            .iter()
-            .find(|(s, _)| *s == step)
-            .map(|(_, d)| Arc::clone(d))
-        {
-            return Ok(d);
-        }
-        let data = {
-            let s = self.scene.read().map_err(poisoned)?;
-            let t = s.as_tet().ok_or("not a mesh")?;
-            t.load_step_data(step).map_err(|e| format!("{e:#}"))?
-        };
-        let data = Arc::new(data);
-        let mut track = self.mesh.lock().map_err(poisoned)?;
-        track.cache.retain(|(s, _)| *s != step);
-        if track.cache.len() >= MESH_STEP_CACHE {
-            track.cache.pop_front();
-        }
-        track.cache.push_back((step, Arc::clone(&data)));
-        Ok(data)
-    }
-
-    fn set_mesh_step(&self, step: usize) -> Result<StepSwitch, String> {
-        if self.scene.read().map_err(poisoned)?.step() == step {
-            return Ok(StepSwitch::Unchanged);
-        }
-        let data = self.load_mesh_step(step)?;
-        let mut s = self.scene.write().map_err(poisoned)?;
-        let t = s.as_tet_mut().ok_or("not a mesh")?;
-        t.set_step_from(step, &data).map_err(|e| format!("{e:#}"))?;
-        Ok(StepSwitch::Refit)
     }
 }
 
@@ -256,164 +208,57 @@ impl PreparedScene for CorePrepared {
         let settings = settings(request);
         settings.validate().map_err(|e| e.to_string())?;
         let scene = self.scene.read().map_err(poisoned)?;
-        let (frame, lod_level) = match &*scene {
-            AnyScene::Ooc(o) => match o.render_with_level(&camera, &settings, cancel) {
-                Some((f, level)) => (Some(f), Some(level)),
-                None => (None, None),
-            },
-            s => (s.render(&camera, &settings, cancel), None),
-        };
-        Ok(frame.map(|f| RenderedImage {
-            width: f.width,
-            height: f.height,
-            rgba8: f.rgba8,
-            elapsed: f.elapsed,
-            rays: f.rays.primary,
-            lod_level,
-        }))
+        Ok(scene
+            .render_with_level(&camera, &settings, cancel)
+            .map(|(f, lod_level)| RenderedImage {
+                width: f.width,
+                height: f.height,
+                rgba8: f.rgba8,
+                elapsed: f.elapsed,
+                rays: f.rays.primary,
+                lod_level,
+            }))
     }
 
     fn set_step(&self, step: usize, _control: &JobControl) -> Result<StepSwitch, String> {
-        let is_tet = self.scene.read().map_err(poisoned)?.as_tet().is_some();
-        if is_tet {
-            return self.set_mesh_step(step);
+        {
+            // Read the step's data under the read lock (frames may still finish), then
+            // refit under the write lock.
+            let s = self.scene.read().map_err(poisoned)?;
+            if s.step() == step {
+                return Ok(StepSwitch::Unchanged);
+            }
+            s.data().prefetch(step).map_err(|e| format!("{e:#}"))?;
         }
         let mut s = self.scene.write().map_err(poisoned)?;
-        if s.step() == step {
-            return Ok(StepSwitch::Unchanged);
-        }
-        Ok(match s.set_step(step).map_err(|e| format!("{e:#}"))? {
-            Some(volume_core::grid::StepSwitch::Refit) => StepSwitch::Refit,
-            Some(volume_core::grid::StepSwitch::Rebuild) => StepSwitch::Rebuilt,
-            None => StepSwitch::Unchanged,
-        })
+        s.set_step(step).map_err(|e| format!("{e:#}"))
     }
 
     fn prefetch(&self, step: usize, _control: &JobControl) -> Result<(), String> {
         let s = self.scene.read().map_err(poisoned)?;
-        match &*s {
-            // The series caches the loaded step; `set_step` then only refits.
-            AnyScene::Grid(g) => match g.series() {
-                Some(series) => series.step(step).map(|_| ()).map_err(|e| e.to_string()),
-                None => Ok(()),
-            },
-            AnyScene::Tet(_) => {
-                drop(s);
-                self.load_mesh_step(step).map(|_| ())
-            }
-            AnyScene::Ooc(_) => Ok(()),
-        }
+        s.data().prefetch(step).map_err(|e| format!("{e:#}"))
     }
 
     fn set_field(&self, name: &str, _control: &JobControl) -> Result<ValueInfo, String> {
         let mut s = self.scene.write().map_err(poisoned)?;
-        let t = s
-            .as_tet_mut()
-            .ok_or_else(|| format!("point array \"{name}\": only tet meshes have point arrays"))?;
-        t.set_field(name).map_err(|e| format!("{e:#}"))?;
+        s.data_mut().set_field(name).map_err(|e| format!("{e:#}"))?;
         drop(s);
         self.value_info()
             .ok_or_else(|| format!("point array \"{name}\" has no finite values"))
     }
 
     fn value_info(&self) -> Option<ValueInfo> {
-        value_info(&*self.scene.read().ok()?)
+        self.scene.read().ok()?.data().value_info(HISTOGRAM_BINS)
     }
 
     fn lod_status(&self) -> Option<LodStatus> {
         let mut cached = self.lod.lock().ok()?;
         // Never wait for a writer: keep the last status while the scene is locked.
         if let Ok(s) = self.scene.try_read() {
-            *cached = s.as_ooc().map(|o| {
-                let st = o.status();
-                LodStatus {
-                    loaded_levels: st.loaded_levels,
-                    level_count: st.level_count,
-                    resident_bytes: st.resident_bytes,
-                    finished: st.finished,
-                    budget_limited: st.budget_limited,
-                    error: st.error,
-                }
-            });
+            *cached = s.data().loader_status();
         }
         cached.clone()
     }
-}
-
-/// Range and histogram of the values an in-core scene draws now: every voxel of the current
-/// step (grids), or the drawn point array at the current step (meshes). `None` for `.isot`
-/// (see [`coarsest_level_histogram`]) and data without finite values. Scans every value.
-pub fn value_info(scene: &AnyScene) -> Option<ValueInfo> {
-    let (lo, hi) = scene.value_range()?;
-    let (histogram, histogram_note) = match scene {
-        AnyScene::Grid(g) => {
-            let v = g.volume();
-            let h = volume_core::dispatch_voxels!(&v.data, buf =>
-                Histogram::compute(buf.as_slice(), lo, hi, HISTOGRAM_BINS));
-            let d = v.dims();
-            (
-                h,
-                format!("all {}×{}×{} voxels of the step shown", d[0], d[1], d[2]),
-            )
-        }
-        AnyScene::Tet(t) => {
-            let values = t.field_values()?;
-            (
-                Histogram::compute(values, lo, hi, HISTOGRAM_BINS),
-                format!(
-                    "the {} point values of \"{}\" at the step shown",
-                    values.len(),
-                    t.field()
-                ),
-            )
-        }
-        AnyScene::Ooc(_) => return None,
-    };
-    Some(ValueInfo {
-        value_range: (lo, hi),
-        histogram: Some(histogram),
-        histogram_note,
-    })
-}
-
-/// `.isot`: the histogram of the coarsest level's voxels (the top treelet, read again from
-/// the file; the finest data is never resident as a whole). The coarse level subsamples the
-/// full volume (thesis 004 §7.7), so its histogram has the shape of the full one.
-pub fn coarsest_level_histogram(path: &Path, lo: f64, hi: f64) -> Result<ValueInfo, String> {
-    use volume_core::ooc::{TreeletRecord, TreeletStorage as _};
-    let file = formats::treelet::IsotFile::open(path).map_err(|e| e.to_string())?;
-    let meta = file.meta();
-    let bytes = file
-        .fetch(0, 0)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    macro_rules! top {
-        ($t:ty) => {{
-            let r = TreeletRecord::<$t>::decode(meta, 0, 0, &bytes)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
-            (
-                Histogram::compute(&r.voxels, lo, hi, HISTOGRAM_BINS),
-                r.voxel_dims,
-            )
-        }};
-    }
-    let (histogram, d) = match meta.voxel_type {
-        VoxelType::U8 => top!(u8),
-        VoxelType::I8 => top!(i8),
-        VoxelType::U16 => top!(u16),
-        VoxelType::I16 => top!(i16),
-        VoxelType::U32 => top!(u32),
-        VoxelType::I32 => top!(i32),
-        VoxelType::F32 => top!(f32),
-        VoxelType::F64 => top!(f64),
-    };
-    Ok(ValueInfo {
-        value_range: (lo, hi),
-        histogram: Some(histogram),
-        histogram_note: format!(
-            "the {}×{}×{} voxels of the coarsest level (top treelet)",
-            d[0], d[1], d[2]
-        ),
-    })
 }
 
 /// What the panels show about a freshly opened scene (scans the values for the histogram;
@@ -423,52 +268,23 @@ pub fn loaded_data(
     path: Option<std::path::PathBuf>,
     scene: AnyScene,
 ) -> Result<LoadedData, String> {
-    let (lo, hi) = scene
-        .value_range()
+    let data = scene.data();
+    let info = data
+        .value_info(HISTOGRAM_BINS)
         .ok_or_else(|| format!("{name}: no finite data values"))?;
-    let info = match &scene {
-        AnyScene::Ooc(_) => {
-            coarsest_level_histogram(scene.path(), lo, hi).unwrap_or_else(|e| ValueInfo {
-                value_range: (lo, hi),
-                histogram: None,
-                histogram_note: format!("no histogram: {e}"),
-            })
-        }
-        s => value_info(s).ok_or_else(|| format!("{name}: no finite data values"))?,
-    };
-    let (kind, dims) = match &scene {
-        AnyScene::Grid(g) => (DataKindLabel::Grid, g.volume().dims()),
-        AnyScene::Tet(_) => (DataKindLabel::Tet, [0; 3]),
-        AnyScene::Ooc(o) => {
-            let d = o.volume().meta().layout.dims();
-            (
-                DataKindLabel::OutOfCore,
-                d.map(|x| usize::try_from(x).unwrap_or(usize::MAX)),
-            )
-        }
-    };
-    let (fields, field) = match scene.as_tet() {
-        Some(t) => (
-            t.field_names().into_iter().map(str::to_owned).collect(),
-            Some(t.field().to_owned()),
-        ),
-        None => (Vec::new(), None),
-    };
-    let times = (0..scene.step_count())
-        .map(|s| scene.time_value(s))
-        .collect();
+    let times = (0..data.step_count()).map(|s| data.time_value(s)).collect();
     Ok(LoadedData {
         name,
         path,
-        kind,
-        summary: scene.describe(),
-        dims,
+        kind: DataKindLabel::from(scene.kind()),
+        summary: data.describe(),
+        dims: data.dims(),
         bounds: scene.world_bounds(),
         value_range: info.value_range,
         histogram: info.histogram,
         histogram_note: info.histogram_note,
-        fields,
-        field,
+        fields: data.field_names().into_iter().map(str::to_owned).collect(),
+        field: data.field().map(str::to_owned),
         times,
         scene: Arc::new(CorePrepared::new(scene)),
     })
@@ -500,11 +316,7 @@ fn scene_options(
             raw: raw.map(raw_layout).transpose()?,
         },
         intersector: intersector(choices.intersector),
-        normals: if choices.smooth_normals {
-            TetNormals::Smooth
-        } else {
-            TetNormals::Faceted
-        },
+        normals: normals(choices.smooth_normals),
         ..SceneOptions::default()
     })
 }
@@ -533,11 +345,14 @@ impl Backend for CoreBackend {
             }
         })?;
         // A restored session's point array, if this mesh has it.
-        if let (Some(want), Some(t)) = (&choices.field, scene.as_tet_mut())
-            && t.field() != want
-            && t.field_names().contains(&want.as_str())
+        if let Some(want) = &choices.field
+            && scene.data().field().is_some_and(|f| f != want)
+            && scene.data().field_names().contains(&want.as_str())
         {
-            t.set_field(want).map_err(|e| format!("{e:#}"))?;
+            scene
+                .data_mut()
+                .set_field(want)
+                .map_err(|e| format!("{e:#}"))?;
         }
         open_control
             .checkpoint(1.0)
@@ -592,20 +407,7 @@ mod tests {
     };
 
     fn request(data: &LoadedData, state: &ViewerState, w: u32, h: u32) -> RenderRequest {
-        RenderRequest {
-            width: w,
-            height: h,
-            scale: 1,
-            camera: CameraPose::from_state(&state.camera, &data.bounds),
-            bounds: data.bounds,
-            surfaces: state.surfaces.clone(),
-            clip_boxes: state.clip_boxes.clone(),
-            clip_planes: state.clip_planes.clone(),
-            options: state.render,
-            step: 0,
-            field: None,
-            lod_levels: 0,
-        }
+        RenderRequest::from_state(state, data, [w, h], 1, 0)
     }
 
     fn sample() -> LoadedData {

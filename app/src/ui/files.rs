@@ -6,8 +6,13 @@
 //! [`crate::scene::open_scene`], which loads steps lazily and checks that every step has the
 //! first one's shape (dims and voxel type for grids, topology for meshes). Anything else
 //! stays a list of files, shown one at a time.
+//!
+//! Two probes decide how a single file opens before any job runs: [`is_session_file`]
+//! (a viewer session rather than data) and [`needs_raw_dialog`] (a raw file without its
+//! layout). Both run on the UI thread, so they read at most a small prefix of the file.
 
 use std::collections::BTreeSet;
+use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
 use crate::scene::{SceneKind, detect_kind};
@@ -116,6 +121,47 @@ pub fn group_files(files: &[PathBuf]) -> FileGroup {
     }
 }
 
+/// Bytes of a `.json` file [`is_session_file`] reads at most: sessions are a few KiB, and
+/// serde writes `version` and `files` first.
+const SESSION_PROBE_BYTES: u64 = 64 * 1024;
+
+/// A `.json` file holding a viewer session (a `version` and at least one of the session's
+/// sections), not a raw file's layout sidecar. Reads at most the first 64 KiB: a file that
+/// fits is parsed; in a longer one the keys are looked for as text.
+pub fn is_session_file(path: &Path) -> bool {
+    const SECTIONS: [&str; 3] = ["files", "surfaces", "camera"];
+    let is_json = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if !is_json {
+        return false;
+    }
+    let mut prefix = Vec::new();
+    let read = std::fs::File::open(path)
+        .and_then(|f| f.take(SESSION_PROBE_BYTES + 1).read_to_end(&mut prefix));
+    if read.is_err() {
+        return false;
+    }
+    if prefix.len() as u64 <= SESSION_PROBE_BYTES {
+        return serde_json::from_slice::<serde_json::Value>(&prefix).is_ok_and(|v| {
+            v.get("version").is_some() && SECTIONS.iter().any(|k| v.get(k).is_some())
+        });
+    }
+    let text = String::from_utf8_lossy(&prefix);
+    let has_key = |k: &str| text.contains(&format!("\"{k}\""));
+    text.trim_start().starts_with('{') && has_key("version") && SECTIONS.iter().any(|k| has_key(k))
+}
+
+/// A raw file needs its layout from the user unless a `NAME.json` sidecar gives it.
+pub fn needs_raw_dialog(path: &Path) -> bool {
+    let is_raw = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "raw" | "bin" | "dat"));
+    is_raw && !path.with_extension("json").exists()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,5 +207,38 @@ mod tests {
             group_files(&named),
             FileGroup::List { reason, .. } if reason.contains("number")
         ));
+    }
+
+    #[test]
+    fn raw_extensions_need_the_dialog_unless_a_sidecar_exists() {
+        let dir = tempfile::tempdir().unwrap();
+        let raw = dir.path().join("ct.raw");
+        assert!(needs_raw_dialog(&raw));
+        std::fs::write(dir.path().join("ct.json"), "{}").unwrap();
+        assert!(!needs_raw_dialog(&raw));
+        assert!(!needs_raw_dialog(Path::new("a.nrrd")));
+        assert!(needs_raw_dialog(Path::new("x/VOL.RAW")));
+    }
+
+    #[test]
+    fn sessions_are_told_from_sidecars_by_a_bounded_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let session = dir.path().join("s.json");
+        std::fs::write(&session, r#"{"version": 1, "files": ["a.nrrd"]}"#).unwrap();
+        assert!(is_session_file(&session));
+        let sidecar = dir.path().join("ct.json");
+        std::fs::write(&sidecar, r#"{"dims": [4, 4, 4], "voxel_type": "u8"}"#).unwrap();
+        assert!(!is_session_file(&sidecar));
+        // Longer than the probe: judged by the keys in the prefix.
+        let padding = " ".repeat(SESSION_PROBE_BYTES as usize);
+        let long = dir.path().join("long.json");
+        std::fs::write(
+            &long,
+            format!(r#"{{"version": 1, "camera": {{}}, "pad": "{padding}"}}"#),
+        )
+        .unwrap();
+        assert!(is_session_file(&long));
+        assert!(!is_session_file(&dir.path().join("missing.json")));
+        assert!(!is_session_file(Path::new("a.nrrd")));
     }
 }

@@ -106,16 +106,8 @@ impl<T> Job<T> {
         self.control.cancel();
     }
 
-    pub fn is_cancelled(&self) -> bool {
-        self.control.is_cancelled()
-    }
-
     pub fn progress(&self) -> f32 {
         self.control.progress()
-    }
-
-    pub fn control(&self) -> &Arc<JobControl> {
-        &self.control
     }
 }
 

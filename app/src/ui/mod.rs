@@ -1,23 +1,35 @@
-//! The viewer's library part, testable without a window.
+//! The viewer (`isoscope` with no subcommand), split the way rerun splits its app: state,
+//! a job table polled in one place, commands applied at the start of a frame, and drawing.
 //!
-//! - [`state`]: the persisted session state (files, camera, isosurfaces, clips, render
-//!   options, time) with JSON save/restore; no caches.
-//! - [`jobs`]: background jobs on std threads with progress and cancel, polled each frame.
-//! - [`backend`]: the link to the library (open files, build scenes, render) behind a trait,
-//!   so tests can drive the real UI with a recording double.
-//! - [`core_backend`]: the real backend (`crate::scene::open_scene`, data-samples, the
-//!   renderer), with refits for time steps and the out-of-core level status.
-//! - [`files`]: several files opened together become a time series when they are numbered.
-//! - [`camera`]: orbit camera → world pose, and projection of world points into the image.
-//! - [`panels`]: the side-panel sections as `*_ui(ui, &mut state, ...)` functions and the
-//!   [`panels::Command`]s they queue.
-//!
-//! The eframe app that ties them together is [`crate::viewer::ViewerApp`].
+//! - [`app`]: the [`eframe::App`] ([`app::ViewerApp`]) and its frame loop; start here.
+//! - State: [`state`] is what a session file holds (files, camera, isosurfaces, clips,
+//!   render options, time) with JSON save/restore; [`runtime`] is what the viewer shows
+//!   now (loaded data, the frame on screen, notifications), never saved.
+//! - Jobs: [`jobs`] runs one computation on a std thread with progress and cancel;
+//!   [`job_table`] holds every running job and hands finished ones back, in order;
+//!   [`scheduler`] decides which jobs the state asks for and applies their results.
+//! - Commands: [`commands`] holds the user intents queued by panels, keys and dialogs.
+//! - Drawing: [`panels`] (side-panel sections), [`bars`] (menu and status bar),
+//!   [`viewport`] (the image, mouse and keys), [`windows`] (dialogs, notifications).
+//! - The library link: [`backend`] (open files, build scenes, render, behind a trait so
+//!   tests drive the real UI with a recording double) and [`core_backend`] (the real one).
+//! - Helpers: [`files`] (numbered files become a time series; session and raw probes),
+//!   [`camera`] (orbit camera → world pose, projection of world points into the image),
+//!   [`frame_upload`] (the rendered frame into a texture without a per-pixel pass).
 
+pub mod app;
 pub mod backend;
+pub mod bars;
 pub mod camera;
+pub mod commands;
 pub mod core_backend;
 pub mod files;
+pub mod frame_upload;
+pub mod job_table;
 pub mod jobs;
 pub mod panels;
+pub mod runtime;
+pub mod scheduler;
 pub mod state;
+pub mod viewport;
+pub mod windows;

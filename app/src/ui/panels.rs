@@ -1,4 +1,5 @@
-//! Side-panel sections as `*_ui(ui, &mut state, ...)` functions.
+//! Side-panel sections as `*_ui(ui, &mut state, ...)` functions, and the side panel that
+//! stacks them (`ViewerApp::side_ui`).
 //!
 //! Panels edit the persisted [`ViewerState`] directly (a changed isovalue simply changes the
 //! next render request) and queue a [`Command`] for anything with side effects (opening
@@ -10,44 +11,13 @@ use std::path::PathBuf;
 
 use egui::{Color32, DragValue, Pos2, Rect, Sense, Slider, Stroke, Ui, Vec2};
 
+use super::app::ViewerApp;
 use super::backend::{DataKindLabel, LoadedData};
+use super::commands::Command;
 use super::state::{
     ClipBoxState, ClipPlaneState, IntersectorChoice, KeepSide, RawLayoutState, SurfaceState,
     ViewerState,
 };
-
-/// Actions with side effects, applied by the viewer at the start of a frame.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Command {
-    OpenFiles(Vec<PathBuf>),
-    /// Opens a raw file with an explicit layout (from the raw dialog).
-    OpenRaw(PathBuf, RawLayoutState),
-    OpenDefault,
-    /// Shows file `index` of `state.files`.
-    ShowFile(usize),
-    /// Tet meshes: draws another point array (a value refit, no rebuild).
-    SetField(String),
-    PickFiles,
-    AddSurface,
-    RemoveSurface(usize),
-    AddClipBox,
-    RemoveClipBox(usize),
-    AddClipPlane,
-    RemoveClipPlane(usize),
-    ResetView,
-    AddBookmark,
-    SetStep(usize),
-    SaveSession(PathBuf),
-    LoadSession(PathBuf),
-    PickSaveSession,
-    PickLoadSession,
-    Screenshot {
-        path: PathBuf,
-        width: u32,
-        height: u32,
-    },
-    CancelJobs,
-}
 
 /// UI preferences kept across runs (eframe storage), not part of a session.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -569,4 +539,49 @@ pub fn new_clip_box() -> ClipBoxState {
 
 pub fn new_clip_plane() -> ClipPlaneState {
     ClipPlaneState::default()
+}
+
+impl ViewerApp {
+    /// The side panel: every section in a collapsible header.
+    pub(super) fn side_ui(&mut self, ui: &mut Ui) {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            egui::CollapsingHeader::new("Data")
+                .default_open(true)
+                .show(ui, |ui| {
+                    data_ui(
+                        ui,
+                        &self.state,
+                        self.rt.data.as_ref(),
+                        self.rt.active_file,
+                        &mut self.commands,
+                    );
+                });
+            egui::CollapsingHeader::new("Isosurfaces")
+                .default_open(true)
+                .show(ui, |ui| {
+                    isosurface_ui(
+                        ui,
+                        &mut self.state,
+                        self.rt.data.as_ref(),
+                        &mut self.prefs.log_histogram,
+                        &mut self.commands,
+                    );
+                });
+            egui::CollapsingHeader::new("Clipping")
+                .default_open(true)
+                .show(ui, |ui| {
+                    clip_ui(ui, &mut self.state, &mut self.commands);
+                });
+            egui::CollapsingHeader::new("Rendering")
+                .default_open(true)
+                .show(ui, |ui| {
+                    render_options_ui(ui, &mut self.state, self.rt.data.as_ref().map(|d| d.kind));
+                });
+            egui::CollapsingHeader::new("Camera")
+                .default_open(false)
+                .show(ui, |ui| {
+                    camera_ui(ui, &mut self.state, &mut self.commands);
+                });
+        });
+    }
 }

@@ -1,0 +1,224 @@
+//! User intents: panels, keys, the menu and finished file dialogs push a [`Command`]; the
+//! viewer applies the queue at the start of the next frame (`ViewerApp::apply_commands`),
+//! before anything is drawn, so a frame always draws one consistent state.
+//!
+//! Edits without side effects (a slider's isovalue, a checkbox) change the
+//! [`ViewerState`] directly instead; the next render request follows from it.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use super::app::ViewerApp;
+use super::backend::LoadedData;
+use super::files::{FileGroup, group_files, is_session_file, needs_raw_dialog};
+use super::jobs::Job;
+use super::panels;
+use super::runtime::RawDialog;
+use super::state::{CameraState, RawLayoutState, ViewerState};
+
+/// Actions with side effects, applied by the viewer at the start of a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Command {
+    OpenFiles(Vec<PathBuf>),
+    /// Opens a raw file with an explicit layout (from the raw dialog); `files` replace the
+    /// session's list when the open succeeds (`None`: keep it).
+    OpenRaw {
+        path: PathBuf,
+        layout: RawLayoutState,
+        files: Option<Vec<PathBuf>>,
+    },
+    OpenDefault,
+    /// Shows file `index` of `state.files`.
+    ShowFile(usize),
+    /// Tet meshes: draws another point array (a value refit, no rebuild).
+    SetField(String),
+    PickFiles,
+    AddSurface,
+    RemoveSurface(usize),
+    AddClipBox,
+    RemoveClipBox(usize),
+    AddClipPlane,
+    RemoveClipPlane(usize),
+    ResetView,
+    AddBookmark,
+    SetStep(usize),
+    SaveSession(PathBuf),
+    LoadSession(PathBuf),
+    PickSaveSession,
+    PickLoadSession,
+    Screenshot {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+    },
+    CancelJobs,
+}
+
+impl ViewerApp {
+    pub(super) fn apply_commands(&mut self) {
+        for cmd in std::mem::take(&mut self.commands) {
+            self.apply(cmd);
+        }
+    }
+
+    fn apply(&mut self, cmd: Command) {
+        match cmd {
+            Command::OpenDefault => self.start_load(None, None, Some(Vec::new())),
+            Command::SetField(name) => self.start_field_switch(name),
+            Command::OpenFiles(files) => self.open_files(&files),
+            Command::OpenRaw {
+                path,
+                layout,
+                files,
+            } => {
+                self.state.raw_layout = Some(layout.clone());
+                self.start_load(Some(path), Some(layout), files);
+            }
+            Command::ShowFile(i) => {
+                if let Some(p) = self.state.files.get(i).cloned() {
+                    self.rt.active_file = i;
+                    self.open_path(p, None);
+                }
+            }
+            Command::PickFiles => self.start_dialog(|| {
+                rfd::FileDialog::new()
+                    .set_title("Open volume data")
+                    .pick_files()
+                    .map(Command::OpenFiles)
+            }),
+            Command::AddSurface => {
+                if let Some(d) = &self.rt.data {
+                    let s = panels::new_surface(&self.state, d);
+                    self.state.surfaces.push(s);
+                }
+            }
+            Command::RemoveSurface(i) if i < self.state.surfaces.len() => {
+                self.state.surfaces.remove(i);
+            }
+            Command::AddClipBox => self.state.clip_boxes.push(panels::new_clip_box()),
+            Command::RemoveClipBox(i) if i < self.state.clip_boxes.len() => {
+                self.state.clip_boxes.remove(i);
+            }
+            Command::AddClipPlane => self.state.clip_planes.push(panels::new_clip_plane()),
+            Command::RemoveClipPlane(i) if i < self.state.clip_planes.len() => {
+                self.state.clip_planes.remove(i);
+            }
+            Command::ResetView => self.state.camera = CameraState::default(),
+            Command::AddBookmark => self.state.bookmarks.push(self.state.camera),
+            Command::SetStep(s) => {
+                let count = self.rt.data.as_ref().map_or(1, LoadedData::step_count);
+                self.state.time.step = s.min(count.saturating_sub(1));
+                self.rt.last_step_advance = Instant::now();
+            }
+            Command::SaveSession(p) => self.start_session_save(p),
+            Command::LoadSession(p) => self.start_session_load(p),
+            Command::PickSaveSession => self.start_dialog(|| {
+                rfd::FileDialog::new()
+                    .add_filter("Isoscope session", &["json"])
+                    .set_file_name("session.json")
+                    .save_file()
+                    .map(Command::SaveSession)
+            }),
+            Command::PickLoadSession => self.start_dialog(|| {
+                rfd::FileDialog::new()
+                    .add_filter("Isoscope session", &["json"])
+                    .pick_file()
+                    .map(Command::LoadSession)
+            }),
+            Command::Screenshot {
+                path,
+                width,
+                height,
+            } => self.start_screenshot(path, width, height),
+            Command::CancelJobs => {
+                // Dropping a job raises its cancel flag (the open stops at its next
+                // checkpoint); the data on screen stays. A running step or field switch is
+                // left to finish (a refit is short and holds the scene's lock).
+                if self.jobs.load.is_running() {
+                    let label = self.jobs.load.job().map(|j| j.label.clone());
+                    self.jobs.load.cancel();
+                    self.notify(format!("cancelled: {}", label.unwrap_or_default()), false);
+                }
+                self.jobs.prefetch.cancel();
+                self.jobs.render.cancel();
+                self.rt.pending_render = None;
+                self.jobs.screenshot.cancel();
+                self.state.time.playing = false;
+            }
+            Command::RemoveSurface(_) | Command::RemoveClipBox(_) | Command::RemoveClipPlane(_) => {
+            }
+        }
+    }
+
+    /// Runs a native file dialog on its own thread; its answer is queued as a command.
+    fn start_dialog(&mut self, dialog: impl FnOnce() -> Option<Command> + Send + 'static) {
+        let job = Job::spawn("file dialog", self.repaint_fn(), |_| dialog());
+        self.jobs.dialog.start((), job);
+    }
+
+    /// A restored session replaces the state and opens its first file (or the sample).
+    pub(super) fn restore_session(&mut self, session: ViewerState) {
+        let files = session.files.clone();
+        let raw = session.raw_layout.clone();
+        self.state = session;
+        self.rt.active_file = 0;
+        self.start_load(files.first().cloned(), raw, None);
+    }
+
+    /// Several files of one kind and shape open as a time series (see [`group_files`]).
+    fn open_files(&mut self, files: &[PathBuf]) {
+        // A session file (from the command line, drag and drop or the file dialog) restores
+        // the session instead.
+        if let [one] = files
+            && is_session_file(one)
+        {
+            self.apply(Command::LoadSession(one.clone()));
+            return;
+        }
+        match group_files(files) {
+            FileGroup::Single(p) => {
+                self.rt.active_file = 0;
+                self.open_path(p.clone(), Some(vec![p]));
+            }
+            FileGroup::Series { pattern, steps } => {
+                self.notify(
+                    format!(
+                        "opening {steps} files as a time series ({})",
+                        pattern.display()
+                    ),
+                    false,
+                );
+                self.rt.active_file = 0;
+                self.open_path(pattern.clone(), Some(vec![pattern]));
+            }
+            FileGroup::List { files, reason } => {
+                let Some(first) = files.first().cloned() else {
+                    return;
+                };
+                if files.len() > 1 {
+                    self.notify(
+                        format!("{} files, shown one at a time: {reason}", files.len()),
+                        false,
+                    );
+                }
+                self.rt.active_file = 0;
+                self.open_path(first, Some(files));
+            }
+        }
+    }
+
+    /// Raw files without a JSON sidecar get the layout dialog first (which opens them with
+    /// [`Command::OpenRaw`]); `files` replace the session's list when the open succeeds.
+    fn open_path(&mut self, path: PathBuf, files: Option<Vec<PathBuf>>) {
+        if needs_raw_dialog(&path) {
+            let layout = self.state.raw_layout.clone().unwrap_or_default();
+            self.rt.raw_dialog = Some(RawDialog {
+                path,
+                layout,
+                files,
+            });
+        } else {
+            self.start_load(Some(path), None, files);
+        }
+    }
+}

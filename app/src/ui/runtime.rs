@@ -1,0 +1,145 @@
+//! What the viewer shows and holds now, beside the persisted [`ViewerState`]: the loaded
+//! data, the frame on screen, notifications, counters. Rebuilt from the state and the
+//! files, never saved.
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use egui::TextureHandle;
+
+use super::backend::{LoadedData, LodStatus, RenderRequest};
+use super::state::{RawLayoutState, ViewerState};
+
+/// The frame on screen.
+pub struct ShownFrame {
+    pub generation: u64,
+    pub request: RenderRequest,
+    pub texture: TextureHandle,
+    pub elapsed: Duration,
+    pub rays: u64,
+    pub size: [u32; 2],
+    /// Out-of-core: the finest level the frame reached.
+    pub lod_level: Option<usize>,
+}
+
+/// A message for the user (errors from bad files, saved screenshots).
+#[derive(Debug, Clone)]
+pub struct Notification {
+    pub text: String,
+    pub is_error: bool,
+    pub created: Instant,
+}
+
+/// Counters that tests (and the status bar) read.
+#[derive(Debug, Clone, Default)]
+pub struct ViewerStats {
+    pub renders_started: u64,
+    pub renders_shown: u64,
+    pub renders_discarded: u64,
+    /// Acceleration structures built from scratch (one per opened dataset).
+    pub scenes_built: u64,
+    pub datasets_loaded: u64,
+    /// Time-step switches done by refitting, and by rebuilding.
+    pub steps_refit: u64,
+    pub steps_rebuilt: u64,
+    /// Steps loaded ahead of time.
+    pub steps_prefetched: u64,
+}
+
+/// The raw-file dialog while it is open.
+pub struct RawDialog {
+    pub path: PathBuf,
+    pub layout: RawLayoutState,
+    /// What the session's file list becomes when the open succeeds.
+    pub files: Option<Vec<PathBuf>>,
+}
+
+/// The viewer's non-persisted state (module docs).
+pub struct Runtime {
+    pub data: Option<LoadedData>,
+    /// Bumped whenever `data` is replaced; jobs and frames of older epochs are stale.
+    pub epoch: u64,
+    /// The file of `state.files` shown.
+    pub active_file: usize,
+    /// The time step the scene holds (a step switch is a refit job).
+    pub scene_step: usize,
+    /// Steps of this epoch whose data is loaded ahead.
+    pub prefetched: Vec<usize>,
+    pub lod: Option<LodStatus>,
+    /// The newest request, to start when the running (coarse) render finishes.
+    pub pending_render: Option<RenderRequest>,
+    /// Generation of the last render started.
+    pub generation: u64,
+    pub shown: Option<ShownFrame>,
+    /// When recent frames arrived (the status bar's frames/s).
+    pub shown_times: VecDeque<Instant>,
+    pub raw_dialog: Option<RawDialog>,
+    pub screenshot_window: bool,
+    pub notifications: Vec<Notification>,
+    pub last_interaction: Option<Instant>,
+    pub last_step_advance: Instant,
+    /// The viewport's size in pixels (the full-resolution render size).
+    pub viewport_px: [u32; 2],
+}
+
+impl Default for Runtime {
+    fn default() -> Self {
+        Self {
+            data: None,
+            epoch: 0,
+            active_file: 0,
+            scene_step: 0,
+            prefetched: Vec::new(),
+            lod: None,
+            pending_render: None,
+            generation: 0,
+            shown: None,
+            shown_times: VecDeque::new(),
+            raw_dialog: None,
+            screenshot_window: false,
+            notifications: Vec::new(),
+            last_interaction: None,
+            last_step_advance: Instant::now(),
+            viewport_px: [0, 0],
+        }
+    }
+}
+
+impl Runtime {
+    pub fn notify(&mut self, text: impl Into<String>, is_error: bool) {
+        let text = text.into();
+        if is_error {
+            eprintln!("isoscope: {text}");
+        }
+        self.notifications.push(Notification {
+            text,
+            is_error,
+            created: Instant::now(),
+        });
+    }
+
+    /// The shown data's name (empty before any data).
+    pub fn data_name(&self) -> String {
+        self.data
+            .as_ref()
+            .map_or_else(String::new, |d| d.name.clone())
+    }
+
+    /// The request `state` asks for (`None` before data and a viewport exist).
+    pub fn desired_request(&self, state: &ViewerState, scale: u32) -> Option<RenderRequest> {
+        let data = self.data.as_ref()?;
+        let [w, h] = self.viewport_px;
+        if w == 0 || h == 0 {
+            return None;
+        }
+        let lod_levels = self.lod.as_ref().map_or(0, |l| l.loaded_levels);
+        Some(RenderRequest::from_state(
+            state,
+            data,
+            [w, h],
+            scale,
+            lod_levels,
+        ))
+    }
+}

@@ -1,0 +1,495 @@
+//! Which jobs run, and what their results do: the viewer's side of the [`JobTable`].
+//!
+//! Every frame `ViewerApp::poll_jobs` applies finished jobs, and `ViewerApp::schedule`
+//! compares what the state asks for with what is shown or running and starts what is
+//! missing: a time-step switch (a refit job) when the scene holds another step, then a
+//! render of the current request (a running full-resolution render of a stale request is
+//! cancelled; a coarse one may finish first), and prefetching of the next steps.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use egui::TextureOptions;
+
+use super::app::ViewerApp;
+use super::backend::{LoadedData, RenderRequest, RenderedImage, StepSwitch, ValueInfo};
+use super::frame_upload::color_image;
+use super::job_table::{Finished, RenderTicket};
+use super::jobs::Job;
+use super::panels;
+use super::runtime::ShownFrame;
+use super::state::{RawLayoutState, ViewerState};
+
+/// Progressive level used while the user interacts (one ray per 4×4 pixels).
+pub const INTERACTIVE_SCALE: u32 = 4;
+/// How long after the last input the view counts as still moving.
+const SETTLE: Duration = Duration::from_millis(150);
+/// Steps loaded ahead of the current one.
+const PREFETCH_AHEAD: usize = 2;
+/// Largest render side, in pixels.
+pub const MAX_RENDER_SIDE: u32 = 4096;
+/// How often the out-of-core loader is polled while it loads.
+const LOD_POLL: Duration = Duration::from_millis(40);
+
+impl ViewerApp {
+    // ---- results ------------------------------------------------------------------------
+
+    /// Applies every finished job, then polls the out-of-core loader (never blocks).
+    pub(super) fn poll_jobs(&mut self, ctx: &egui::Context) {
+        while let Some(done) = self.jobs.next_finished() {
+            self.finish(ctx, done);
+        }
+        // A newly published level changes the render request.
+        self.rt.lod = self.rt.data.as_ref().and_then(|d| d.scene.lod_status());
+        if self.rt.lod.as_ref().is_some_and(|l| !l.finished) {
+            ctx.request_repaint_after(LOD_POLL);
+        }
+    }
+
+    fn finish(&mut self, ctx: &egui::Context, done: Finished) {
+        match done {
+            Finished::Loaded { files, result } => match result.and_then(|r| r) {
+                Ok(data) => {
+                    if let Some(files) = files {
+                        self.state.files = files;
+                    }
+                    self.install_data(data);
+                }
+                Err(e) => self.notify(e, true),
+            },
+            Finished::FieldSwitched { name, result } => match result.and_then(|r| r) {
+                Ok(info) => self.field_switched(name, info),
+                Err(e) => {
+                    let name = self.rt.data_name();
+                    self.notify(format!("{name}: {e}"), true);
+                }
+            },
+            Finished::StepSwitched { step, result } => match result.and_then(|r| r) {
+                Ok((switch, info)) => {
+                    self.rt.scene_step = step;
+                    if let (Some(info), Some(d)) = (info, self.rt.data.as_mut()) {
+                        d.set_values(info);
+                    }
+                    match switch {
+                        StepSwitch::Refit => self.stats.steps_refit += 1,
+                        StepSwitch::Rebuilt => self.stats.steps_rebuilt += 1,
+                        StepSwitch::Unchanged => {}
+                    }
+                }
+                Err(e) => {
+                    // Stay on the step the scene holds; stop playback so it does not retry.
+                    let name = self.rt.data_name();
+                    self.notify(format!("{name}: time step {step}: {e}"), true);
+                    self.state.time.step = self.rt.scene_step;
+                    self.state.time.playing = false;
+                }
+            },
+            Finished::Prefetched { step, ok } => {
+                // A failed prefetch is reported when the step is shown; mark it done so
+                // playback does not wait for it.
+                self.rt.prefetched.push(step);
+                if ok {
+                    self.stats.steps_prefetched += 1;
+                }
+            }
+            Finished::Rendered { ticket, result } => {
+                if let Ok(image) = result {
+                    self.finish_render(ctx, ticket, image);
+                } else {
+                    self.stats.renders_discarded += 1;
+                    self.notify("rendering failed (the render thread panicked)", true);
+                }
+            }
+            Finished::Picked(command) => self.commands.extend(command),
+            Finished::ScreenshotSaved(result) => match result {
+                Ok(p) => self.notify(format!("screenshot saved to {}", p.display()), false),
+                Err(e) => self.notify(format!("screenshot: {e}"), true),
+            },
+            Finished::SessionSaved(result) => match result {
+                Ok(p) => self.notify(format!("session saved to {}", p.display()), false),
+                Err(e) => self.notify(e, true),
+            },
+            Finished::SessionLoaded(result) => match result {
+                Ok(session) => self.restore_session(session),
+                Err(e) => self.notify(e, true),
+            },
+        }
+    }
+
+    /// The scene draws point array `name` now: the sliders take its range and histogram,
+    /// and every isovalue keeps its relative position in the range.
+    fn field_switched(&mut self, name: String, info: ValueInfo) {
+        let Some(d) = self.rt.data.as_mut() else {
+            return;
+        };
+        let (lo0, hi0) = d.value_range;
+        let (lo, hi) = info.value_range;
+        for s in &mut self.state.surfaces {
+            let frac = if hi0 > lo0 {
+                ((s.isovalue - lo0) / (hi0 - lo0)).clamp(0.0, 1.0)
+            } else {
+                0.5
+            };
+            s.isovalue = lo + frac * (hi - lo);
+        }
+        d.set_values(info);
+        d.field = Some(name.clone());
+        self.state.field = Some(name);
+    }
+
+    /// New data replaces the old: the jobs of the old data end, its frames become stale.
+    fn install_data(&mut self, data: LoadedData) {
+        self.rt.epoch += 1;
+        self.jobs.step.cancel();
+        self.jobs.field.cancel();
+        self.jobs.prefetch.cancel();
+        self.rt.prefetched.clear();
+        self.jobs.render.cancel();
+        self.rt.pending_render = None;
+        if let Some(p) = &data.path {
+            self.prefs.remember(p);
+        }
+        // Scenes open at step 0; a restored session's step is then a refit away.
+        self.rt.scene_step = 0;
+        self.state.time.step = self
+            .state
+            .time
+            .step
+            .min(data.step_count().saturating_sub(1));
+        let (lo, hi) = data.value_range;
+        // Keep restored isovalues (sessions) if they fit the data; otherwise start fresh.
+        self.state
+            .surfaces
+            .retain(|s| s.isovalue >= lo && s.isovalue <= hi);
+        if self.state.surfaces.is_empty() {
+            self.state
+                .surfaces
+                .push(panels::new_surface(&self.state, &data));
+        }
+        self.state.field.clone_from(&data.field);
+        self.rt.lod = data.scene.lod_status();
+        self.rt.data = Some(data);
+        self.stats.datasets_loaded += 1;
+        self.stats.scenes_built += 1;
+    }
+
+    fn finish_render(
+        &mut self,
+        ctx: &egui::Context,
+        ticket: RenderTicket,
+        image: Result<Option<RenderedImage>, String>,
+    ) {
+        let newest_shown = self.rt.shown.as_ref().map_or(0, |s| s.generation);
+        match image {
+            Err(e) => {
+                self.stats.renders_discarded += 1;
+                self.notify(format!("rendering: {e}"), true);
+            }
+            Ok(Some(img)) if ticket.epoch == self.rt.epoch && ticket.generation > newest_shown => {
+                let (width, height, bytes) = (img.width, img.height, img.rgba8.len());
+                let size = [width as usize, height as usize];
+                if let Some(color) = color_image(size, img.rgba8) {
+                    let texture = match self.rt.shown.take() {
+                        Some(mut s) => {
+                            s.texture.set(color, TextureOptions::LINEAR);
+                            s.texture
+                        }
+                        None => ctx.load_texture("isoscope-view", color, TextureOptions::LINEAR),
+                    };
+                    self.rt.shown = Some(ShownFrame {
+                        generation: ticket.generation,
+                        request: ticket.request,
+                        texture,
+                        elapsed: img.elapsed,
+                        rays: img.rays,
+                        size: [width, height],
+                        lod_level: img.lod_level,
+                    });
+                    self.rt.shown_times.push_back(Instant::now());
+                    self.stats.renders_shown += 1;
+                } else {
+                    self.stats.renders_discarded += 1;
+                    self.notify(
+                        format!("renderer returned a {width}×{height} image with {bytes} bytes"),
+                        true,
+                    );
+                }
+            }
+            _ => self.stats.renders_discarded += 1,
+        }
+        if let Some(next) = self.rt.pending_render.take() {
+            self.start_render(next);
+        }
+    }
+
+    // ---- starting jobs ------------------------------------------------------------------
+
+    /// Opens `path` (the embedded sample for `None`); on success `files` replace the
+    /// session's list, so a cancelled or failed open leaves the session as it was.
+    pub(super) fn start_load(
+        &mut self,
+        path: Option<PathBuf>,
+        raw: Option<RawLayoutState>,
+        files: Option<Vec<PathBuf>>,
+    ) {
+        let backend = Arc::clone(&self.backend);
+        let label = path.as_ref().map_or_else(
+            || "generating the default sample".to_string(),
+            |p| format!("loading {}", p.display()),
+        );
+        let choices = self.open_choices();
+        let job = Job::spawn(label, self.repaint_fn(), move |control| match path {
+            Some(p) => backend.open(&p, raw.as_ref(), choices, control),
+            None => backend.default_dataset(choices, control),
+        });
+        self.jobs.load.start(files, job);
+    }
+
+    /// Writes the session (serialized here, written by a job).
+    pub(super) fn start_session_save(&mut self, path: PathBuf) {
+        let json = self.state.to_json();
+        let job = Job::spawn("saving the session", self.repaint_fn(), move |_| {
+            std::fs::write(&path, json)
+                .map(|()| path.clone())
+                .map_err(|e| format!("{}: {e}", path.display()))
+        });
+        self.jobs.save_session.start((), job);
+    }
+
+    /// Reads and parses a session in a job; it replaces the state when it arrives.
+    pub(super) fn start_session_load(&mut self, path: PathBuf) {
+        let job = Job::spawn("reading the session", self.repaint_fn(), move |_| {
+            ViewerState::load(&path)
+        });
+        self.jobs.load_session.start((), job);
+    }
+
+    /// True when the scene holds the step the state asks for.
+    fn scene_ready(&self) -> bool {
+        self.rt.data.is_some()
+            && !self.jobs.step.is_running()
+            && !self.jobs.field.is_running()
+            && self.rt.scene_step == self.state.time.step
+    }
+
+    fn start_render(&mut self, request: RenderRequest) {
+        if !self.scene_ready() || request.step != self.rt.scene_step {
+            return;
+        }
+        let Some(scene) = self.rt.data.as_ref().map(|d| Arc::clone(&d.scene)) else {
+            return;
+        };
+        self.rt.generation += 1;
+        let req = request.clone();
+        let job = Job::spawn("rendering", self.repaint_fn(), move |control| {
+            scene.render(&req, control.cancel_flag())
+        });
+        let ticket = RenderTicket {
+            generation: self.rt.generation,
+            epoch: self.rt.epoch,
+            request,
+        };
+        self.jobs.render.start(ticket, job);
+        self.stats.renders_started += 1;
+    }
+
+    /// A step or field switch takes the scene's write lock: stop the running frame first.
+    fn stop_render_for_refit(&mut self) {
+        if self.jobs.render.cancel().is_some() {
+            self.stats.renders_discarded += 1;
+        }
+        self.rt.pending_render = None;
+    }
+
+    /// Draws another point array of a mesh (a value refit in a job; renders wait for it).
+    pub(super) fn start_field_switch(&mut self, name: String) {
+        let Some(d) = &self.rt.data else { return };
+        if d.field.as_deref() == Some(name.as_str()) || self.jobs.field.is_running() {
+            return;
+        }
+        if !d.fields.contains(&name) {
+            let text = format!("{}: no point array \"{name}\"", d.name);
+            self.notify(text, true);
+            return;
+        }
+        let scene = Arc::clone(&d.scene);
+        self.stop_render_for_refit();
+        let n = name.clone();
+        let job = Job::spawn(
+            format!("switching to point array {name}"),
+            self.repaint_fn(),
+            move |control| scene.set_field(&n, control),
+        );
+        self.jobs.field.start(name, job);
+    }
+
+    pub(super) fn start_screenshot(&mut self, path: PathBuf, width: u32, height: u32) {
+        let Some(mut req) = self.desired_request(1) else {
+            self.notify("screenshot: nothing to render yet", true);
+            return;
+        };
+        if !self.scene_ready() {
+            self.notify("screenshot: the scene is still being prepared", true);
+            return;
+        }
+        let Some(scene) = self.rt.data.as_ref().map(|d| Arc::clone(&d.scene)) else {
+            return;
+        };
+        req.width = width.clamp(1, MAX_RENDER_SIDE * 4);
+        req.height = height.clamp(1, MAX_RENDER_SIDE * 4);
+        let job = Job::spawn("screenshot", self.repaint_fn(), move |control| {
+            let img = scene
+                .render(&req, control.cancel_flag())?
+                .ok_or_else(|| "cancelled".to_string())?;
+            let buf = image::RgbaImage::from_raw(img.width, img.height, img.rgba8)
+                .ok_or_else(|| "the renderer returned a wrong-sized image".to_string())?;
+            buf.save(&path)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            Ok(path)
+        });
+        self.jobs.screenshot.start((), job);
+    }
+
+    // ---- what the state asks for --------------------------------------------------------
+
+    fn is_interacting(&self, ctx: &egui::Context) -> bool {
+        ctx.dragged_id().is_some()
+            || self.state.time.playing
+            || self
+                .rt
+                .last_interaction
+                .is_some_and(|t| t.elapsed() < SETTLE)
+    }
+
+    /// Starts the step switch, render and prefetch the state asks for (module docs).
+    pub(super) fn schedule(&mut self, ctx: &egui::Context) {
+        self.schedule_step();
+        let interacting = self.is_interacting(ctx);
+        let scale = if interacting { INTERACTIVE_SCALE } else { 1 };
+        let Some(wanted) = self.desired_request(scale) else {
+            return;
+        };
+        if !self.scene_ready() {
+            return;
+        }
+        let same_as = |r: &RenderRequest| *r == wanted;
+        let running = self.jobs.render.meta();
+        if self.rt.shown.as_ref().is_some_and(|s| same_as(&s.request))
+            && running.is_none_or(|t| same_as(&t.request))
+        {
+            return;
+        }
+        if running.is_some_and(|t| same_as(&t.request)) {
+            self.rt.pending_render = None;
+            return;
+        }
+        // Out-of-core: a frame of a coarser level is still worth showing; let it finish.
+        let only_lod_differs = |r: &RenderRequest| {
+            RenderRequest {
+                lod_levels: wanted.lod_levels,
+                ..r.clone()
+            } == wanted
+        };
+        let epoch = self.rt.epoch;
+        match running {
+            None => self.start_render(wanted),
+            Some(t) if t.epoch == epoch && only_lod_differs(&t.request) => {
+                self.rt.pending_render = Some(wanted);
+            }
+            Some(t) if t.request.scale == 1 || t.epoch != epoch => {
+                // A full-resolution frame would arrive stale: cancel it and start over.
+                self.jobs.render.cancel();
+                self.stats.renders_discarded += 1;
+                self.start_render(wanted);
+            }
+            // A coarse frame is cheap: let it finish (the user sees progress), then render
+            // the newest request.
+            Some(_) => self.rt.pending_render = Some(wanted),
+        }
+        if interacting {
+            ctx.request_repaint_after(SETTLE);
+        }
+    }
+
+    /// Switches the scene to the wanted step (a refit job) and prefetches the next ones.
+    fn schedule_step(&mut self) {
+        let Some(data) = &self.rt.data else { return };
+        let scene = Arc::clone(&data.scene);
+        let count = data.step_count();
+        let wanted = self.state.time.step;
+        if wanted != self.rt.scene_step
+            && !self.jobs.step.is_running()
+            && !self.jobs.field.is_running()
+        {
+            self.stop_render_for_refit();
+            let job = Job::spawn(
+                format!("switching to step {wanted}"),
+                self.repaint_fn(),
+                move |control| {
+                    let switch = scene.set_step(wanted, control)?;
+                    // The new step's range and histogram (unchanged: nothing to scan).
+                    let info = match switch {
+                        StepSwitch::Unchanged => None,
+                        _ => scene.value_info(),
+                    };
+                    Ok((switch, info))
+                },
+            );
+            self.jobs.step.start(wanted, job);
+            return;
+        }
+        if count <= 1 || self.jobs.step.is_running() || self.jobs.prefetch.is_running() {
+            return;
+        }
+        let mut t = self.state.time;
+        for _ in 0..PREFETCH_AHEAD {
+            let Some(next) = t.next_step(count) else {
+                return;
+            };
+            t.step = next;
+            if next != self.rt.scene_step && !self.rt.prefetched.contains(&next) {
+                let scene = Arc::clone(&scene);
+                let job = Job::spawn(
+                    format!("prefetching step {next}"),
+                    self.repaint_fn(),
+                    move |control| scene.prefetch(next, control),
+                );
+                self.jobs.prefetch.start(next, job);
+                return;
+            }
+        }
+    }
+
+    /// Playback: the next step once the current one is on screen and the next is loaded.
+    pub(super) fn advance_playback(&mut self, ctx: &egui::Context) {
+        let Some(data) = &self.rt.data else { return };
+        let count = data.step_count();
+        let t = self.state.time;
+        if !t.playing || count <= 1 {
+            return;
+        }
+        let period = Duration::from_secs_f32(1.0 / t.fps.clamp(0.1, 120.0));
+        let since = self.rt.last_step_advance.elapsed();
+        if since < period {
+            ctx.request_repaint_after(period.saturating_sub(since));
+            return;
+        }
+        let Some(next) = t.next_step(count) else {
+            self.state.time.playing = false;
+            return;
+        };
+        // Advance once the current step is on screen and the next one is loaded (no
+        // stutter through steps still being read).
+        let shown_current = self
+            .rt
+            .shown
+            .as_ref()
+            .is_some_and(|s| s.request.step == t.step);
+        if shown_current && self.rt.prefetched.contains(&next) && !self.jobs.step.is_running() {
+            self.state.time.step = next;
+            self.rt.last_step_advance = Instant::now();
+        }
+        ctx.request_repaint_after(period);
+    }
+}

@@ -1,0 +1,123 @@
+//! The viewport: the frame on screen (or what is being prepared), orbit/pan/zoom by mouse
+//! and keys (which edit the camera state directly and mark the view as moving, so frames
+//! are coarse until it settles), and the enabled clip boxes' outlines.
+
+use std::time::Instant;
+
+use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
+
+use super::app::ViewerApp;
+use super::camera::{CameraPose, box_edges, clip_box_world};
+use super::scheduler::MAX_RENDER_SIDE;
+use super::state::CameraState;
+
+impl ViewerApp {
+    pub(super) fn viewport_ui(&mut self, ui: &mut egui::Ui) {
+        let rect = ui.available_rect_before_wrap();
+        let response = ui.allocate_rect(rect, Sense::click_and_drag());
+        let ppp = ui.ctx().pixels_per_point();
+        self.rt.viewport_px = [
+            ((rect.width() * ppp).round() as u32).min(MAX_RENDER_SIDE),
+            ((rect.height() * ppp).round() as u32).min(MAX_RENDER_SIDE),
+        ];
+        let painter = ui.painter_at(rect);
+        let bg = self
+            .state
+            .render
+            .background
+            .map(|c| (c.clamp(0.0, 1.0) * 255.0) as u8);
+        painter.rect_filled(rect, 0.0, Color32::from_rgb(bg[0], bg[1], bg[2]));
+        if let Some(s) = &self.rt.shown {
+            painter.image(
+                s.texture.id(),
+                rect,
+                Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                Color32::WHITE,
+            );
+        } else {
+            let text = if self.is_busy() {
+                "working…"
+            } else {
+                "no image"
+            };
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                text,
+                egui::FontId::proportional(18.0),
+                Color32::GRAY,
+            );
+        }
+        self.handle_view_input(ui, &response, rect);
+        self.draw_clip_outlines(&painter, rect);
+    }
+
+    fn handle_view_input(&mut self, ui: &egui::Ui, response: &egui::Response, rect: Rect) {
+        let mut moved = false;
+        let (shift, scroll) = ui.input(|i| (i.modifiers.shift, i.smooth_scroll_delta.y));
+        let pan_drag = response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || (shift && response.dragged_by(egui::PointerButton::Primary));
+        let d = response.drag_delta();
+        let px_to_radii = 2.0 * self.state.camera.zoom / rect.height().max(1.0);
+        if pan_drag && d != Vec2::ZERO {
+            self.state
+                .camera
+                .pan_by(-d.x * px_to_radii, d.y * px_to_radii);
+            moved = true;
+        } else if response.dragged_by(egui::PointerButton::Primary) && d != Vec2::ZERO {
+            self.state.camera.orbit(-d.x * 0.4, d.y * 0.4);
+            moved = true;
+        }
+        if response.hovered() && scroll != 0.0 {
+            self.state.camera.zoom_by((-scroll * 0.002).exp());
+            moved = true;
+        }
+        let typing = ui.ctx().memory(|m| m.focused().is_some());
+        if response.hovered() && !typing {
+            ui.input(|i| {
+                use egui::Key;
+                let c = &mut self.state.camera;
+                let step = if i.modifiers.shift { 1.0 } else { 5.0 };
+                let mut any = true;
+                if i.key_down(Key::ArrowLeft) {
+                    c.orbit(-step, 0.0);
+                } else if i.key_down(Key::ArrowRight) {
+                    c.orbit(step, 0.0);
+                } else if i.key_down(Key::ArrowUp) {
+                    c.orbit(0.0, step);
+                } else if i.key_down(Key::ArrowDown) {
+                    c.orbit(0.0, -step);
+                } else if i.key_down(Key::Plus) || i.key_down(Key::Equals) {
+                    c.zoom_by(0.97);
+                } else if i.key_down(Key::Minus) {
+                    c.zoom_by(1.03);
+                } else if i.key_pressed(Key::R) {
+                    *c = CameraState::default();
+                } else {
+                    any = false;
+                }
+                moved |= any;
+            });
+        }
+        if moved {
+            self.rt.last_interaction = Some(Instant::now());
+        }
+    }
+
+    fn draw_clip_outlines(&self, painter: &egui::Painter, rect: Rect) {
+        let Some(data) = &self.rt.data else { return };
+        let pose = CameraPose::from_state(&self.state.camera, &data.bounds);
+        for b in self.state.clip_boxes.iter().filter(|b| b.enabled) {
+            let world = clip_box_world(b, &data.bounds);
+            for (p, q) in box_edges(&world) {
+                if let Some((a, c)) = pose.project_segment(p, q, rect.width(), rect.height()) {
+                    painter.line_segment(
+                        [rect.min + Vec2::from(a), rect.min + Vec2::from(c)],
+                        Stroke::new(1.5, Color32::from_rgb(255, 200, 40)),
+                    );
+                }
+            }
+        }
+    }
+}

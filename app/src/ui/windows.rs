@@ -1,0 +1,122 @@
+//! Windows over the viewport: the raw-file layout dialog, the screenshot dialog and the
+//! notifications (errors stay until dismissed). They read the state and push
+//! [`Command`]s; so do files dropped on the window.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use egui::{Color32, Vec2};
+
+use super::app::ViewerApp;
+use super::commands::Command;
+use super::panels;
+
+impl ViewerApp {
+    pub(super) fn windows_ui(&mut self, ctx: &egui::Context) {
+        if let Some(dialog) = &mut self.rt.raw_dialog {
+            let mut open = true;
+            let mut confirmed = false;
+            egui::Window::new("Raw file layout")
+                .open(&mut open)
+                .collapsible(false)
+                .show(ctx, |ui| {
+                    ui.label(dialog.path.display().to_string());
+                    confirmed = panels::raw_layout_ui(ui, &mut dialog.layout);
+                });
+            if confirmed {
+                let d = self.rt.raw_dialog.take().expect("dialog is open");
+                self.commands.push(Command::OpenRaw {
+                    path: d.path,
+                    layout: d.layout,
+                    files: d.files,
+                });
+            } else if !open {
+                self.rt.raw_dialog = None;
+            }
+        }
+        if self.rt.screenshot_window {
+            let mut open = true;
+            let mut take = false;
+            egui::Window::new("Screenshot")
+                .open(&mut open)
+                .collapsible(false)
+                .show(ctx, |ui| {
+                    let [w, h] = &mut self.prefs.screenshot_size;
+                    ui.horizontal(|ui| {
+                        let l = ui.label("Width");
+                        ui.add(egui::DragValue::new(w).range(16..=16384))
+                            .labelled_by(l.id);
+                        let l = ui.label("Height");
+                        ui.add(egui::DragValue::new(h).range(16..=16384))
+                            .labelled_by(l.id);
+                    });
+                    let mut path = self.prefs.screenshot_path.display().to_string();
+                    ui.horizontal(|ui| {
+                        let l = ui.label("PNG file");
+                        if ui
+                            .text_edit_singleline(&mut path)
+                            .labelled_by(l.id)
+                            .changed()
+                        {
+                            self.prefs.screenshot_path = PathBuf::from(&path);
+                        }
+                    });
+                    take = ui.button("Save PNG").clicked();
+                });
+            if take {
+                let [width, height] = self.prefs.screenshot_size;
+                self.commands.push(Command::Screenshot {
+                    path: self.prefs.screenshot_path.clone(),
+                    width,
+                    height,
+                });
+                open = false;
+            }
+            self.rt.screenshot_window = open;
+        }
+        // Notifications, newest at the bottom; errors stay until dismissed.
+        self.rt
+            .notifications
+            .retain(|n| n.is_error || n.created.elapsed() < Duration::from_secs(6));
+        if !self.rt.notifications.is_empty() {
+            let mut dismiss = None;
+            egui::Area::new(egui::Id::unique("isoscope-notifications"))
+                .anchor(egui::Align2::RIGHT_TOP, Vec2::new(-12.0, 40.0))
+                .show(ctx, |ui| {
+                    for (i, n) in self.rt.notifications.iter().enumerate() {
+                        egui::Frame::popup(ui.style()).show(ui, |ui| {
+                            ui.set_max_width(380.0);
+                            let color = if n.is_error {
+                                Color32::from_rgb(255, 120, 100)
+                            } else {
+                                ui.visuals().text_color()
+                            };
+                            ui.colored_label(color, &n.text);
+                            if ui.small_button("Dismiss").clicked() {
+                                dismiss = Some(i);
+                            }
+                        });
+                    }
+                });
+            if let Some(i) = dismiss {
+                self.rt.notifications.remove(i);
+            }
+            ctx.request_repaint_after(Duration::from_secs(1));
+        }
+    }
+
+    /// Files dropped on the window open like files given on the command line.
+    pub(super) fn handle_dropped_files(&mut self, ctx: &egui::Context) {
+        let dropped: Vec<PathBuf> = ctx.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .filter(|p| !p.as_os_str().is_empty())
+                .collect()
+        });
+        if !dropped.is_empty() {
+            self.commands.push(Command::OpenFiles(dropped));
+        }
+    }
+}
