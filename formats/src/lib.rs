@@ -14,6 +14,8 @@
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
 //!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
 //! - [`open`]: picks the reader from the name and contents.
+//! - [`input`]: every reader opens its files through [`input::open_regular`] (regular files
+//!   only: a FIFO, device or directory is refused before it is opened).
 //!
 //! The NRRD header parser has a `cargo fuzz` target in `formats/fuzz` (see `formats/README.md`);
 //! its seed corpus replays in the tests.
@@ -23,6 +25,7 @@
 //! `formats/README.md`); `open` reports NIfTI files as an unknown format with that note.
 
 pub mod error;
+pub mod input;
 pub mod mesh;
 pub mod nrrd;
 pub mod raw;
@@ -119,7 +122,7 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
     }
     // Sniff: a NRRD under another name.
     let mut magic = [0u8; 4];
-    let file = std::fs::File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let file = input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
     let n = std::io::Read::read(&mut &file, &mut magic).map_err(|e| FormatError::io(path, e))?;
     if n == 4 && &magic == b"NRRD" {
         return nrrd::read_nrrd(path);

@@ -96,7 +96,8 @@ impl RawLayout {
 
     /// Reads the JSON sidecar at `path`.
     pub fn from_sidecar(path: &Path) -> Result<Self, FormatError> {
-        let text = std::fs::read_to_string(path).map_err(|e| FormatError::io(path, e))?;
+        let text =
+            crate::input::read_regular_to_string(path).map_err(|e| FormatError::io(path, e))?;
         serde_json::from_str(&text).map_err(|e| FormatError::Sidecar {
             path: path.to_path_buf(),
             reason: e.to_string(),
@@ -105,16 +106,18 @@ impl RawLayout {
 }
 
 /// The sidecar of `raw_path`: `NAME.json` next to `NAME.raw`, else `NAME.raw.json`, if either
-/// exists.
+/// exists. A sidecar that exists but is not a regular file (a FIFO, a directory) is still
+/// returned, so that [`RawLayout::from_sidecar`] refuses it by name instead of the raw file
+/// being reported as of unknown type.
 pub fn sidecar_path(raw_path: &Path) -> Option<PathBuf> {
     let a = raw_path.with_extension("json");
-    if a.is_file() {
+    if a.exists() {
         return Some(a);
     }
     let mut b = raw_path.as_os_str().to_owned();
     b.push(".json");
     let b = PathBuf::from(b);
-    b.is_file().then_some(b)
+    b.exists().then_some(b)
 }
 
 /// Parses `256x256x108` (also `256,256,108`).
@@ -158,15 +161,38 @@ pub fn parse_spacing(s: &str) -> Result<[f64; 3], String> {
 
 /// Reads a raw file of the given layout (memory-mapped; zero-copy when native and aligned).
 pub fn read_raw(path: &Path, layout: &RawLayout) -> Result<RectilinearVolume, FormatError> {
-    let grid = Grid::uniform(layout.dims, layout.origin, layout.spacing)
-        .map_err(|e| FormatError::geometry(path, e))?;
+    let grid = Grid::uniform(layout.dims, layout.origin, layout.spacing).map_err(|e| {
+        // Coordinates beyond single-precision rendering: name the layout field (sidecar key
+        // and command-line flag alike) that put them there. `Grid::new` checks dims and
+        // finiteness first, so a `BadAxis` with an overflow here is that case.
+        let axes = [0, 1, 2].map(|a| volume_core::AxisCoords::Uniform {
+            origin: layout.origin[a],
+            spacing: layout.spacing[a],
+        });
+        match (
+            &e,
+            volume_core::volume::coordinate_overflow(layout.dims, &axes, None),
+        ) {
+            (volume_core::VolumeError::BadAxis { axis, reason }, Some((a, _))) if *axis == a => {
+                let far = layout.origin[a].is_nan()
+                    || layout.origin[a].abs() > volume_core::volume::MAX_WORLD_COORD;
+                FormatError::BadValue {
+                    path: path.to_path_buf(),
+                    line: 0,
+                    field: if far { "origin" } else { "spacing" }.into(),
+                    reason: format!("axis {a}: {reason}"),
+                }
+            }
+            _ => FormatError::geometry(path, e),
+        }
+    })?;
     let data_bytes = layout.data_bytes().ok_or_else(|| FormatError::BadValue {
         path: path.to_path_buf(),
         line: 0,
         field: "dims".into(),
         reason: format!("{:?} voxels overflow", layout.dims),
     })?;
-    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
     let needed = layout.header_bytes.checked_add(data_bytes);
     match needed {

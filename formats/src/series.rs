@@ -26,6 +26,8 @@ pub struct FileSeries {
     files: Vec<PathBuf>,
     options: OpenOptions,
     first: FirstStep,
+    /// Step 0's dims and voxel type: a later step that differs is refused naming both files.
+    first_shape: ([usize; 3], volume_core::VoxelType),
 }
 
 impl FileSeries {
@@ -38,6 +40,7 @@ impl FileSeries {
             pattern: pattern.to_path_buf(),
             files,
             options: options.clone(),
+            first_shape: (first.dims(), first.data.voxel_type()),
             first: FirstStep::new(first),
         })
     }
@@ -72,7 +75,18 @@ impl StepLoader for FileSeries {
             .files
             .get(step)
             .ok_or_else(|| format!("step {step} out of range"))?;
-        load_file(path, &self.options).map_err(|e| e.to_string())
+        let v = load_file(path, &self.options).map_err(|e| e.to_string())?;
+        let (dims, ty) = self.first_shape;
+        if (v.dims(), v.data.voxel_type()) != (dims, ty) {
+            return Err(format!(
+                "{}: {:?} {} differs from step 0 ({}: {dims:?} {ty})",
+                path.display(),
+                v.dims(),
+                v.data.voxel_type(),
+                self.files[0].display()
+            ));
+        }
+        Ok(v)
     }
 
     fn describe(&self) -> String {

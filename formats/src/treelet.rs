@@ -230,7 +230,7 @@ impl std::fmt::Debug for IsotFile {
 /// True if `path` starts with the `.isot` magic.
 pub fn is_isot(path: &Path) -> bool {
     let mut m = [0u8; 8];
-    File::open(path)
+    crate::input::open_regular(path)
         .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut m))
         .is_ok()
         && m == MAGIC
@@ -240,7 +240,7 @@ impl IsotFile {
     /// Opens and checks `path`: magic, version, header CRC, geometry, the level table
     /// against the layout recomputed from dims and height, and the exact file length.
     pub fn open(path: &Path) -> Result<Self, FormatError> {
-        let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+        let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
         let len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
         if len < 24 {
             return Err(FormatError::TooShort {
@@ -393,15 +393,26 @@ impl IsotFile {
         let data_pages = c.u64("data pages")?;
         let crc_offset = c.u64("checksum table offset")?;
         let data_offset = header_len.next_multiple_of(PAGE);
-        let expected_pages = plans.last().map_or(0, |p| p.first_page + p.page_count);
-        if data_pages != expected_pages || crc_offset != data_offset + data_pages * PAGE {
+        // Checked: dims near the limits give page counts whose byte sizes overflow u64.
+        let expected_pages = plans
+            .last()
+            .map_or(Some(0), |p| p.first_page.checked_add(p.page_count));
+        let expected_crc = data_pages
+            .checked_mul(PAGE)
+            .and_then(|b| b.checked_add(data_offset));
+        let total = data_pages
+            .checked_mul(4)
+            .and_then(|b| b.checked_add(crc_offset));
+        let (Some(total), true) = (
+            total,
+            Some(data_pages) == expected_pages && Some(crc_offset) == expected_crc,
+        ) else {
             return Err(bad(
                 path,
                 "data pages",
                 "page count or checksum table offset disagrees with the level table",
             ));
-        }
-        let total = crc_offset + data_pages * 4;
+        };
         if len < total {
             return Err(FormatError::TooShort {
                 path: path.to_path_buf(),

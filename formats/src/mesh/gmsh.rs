@@ -510,7 +510,7 @@ impl Parser<'_> {
                 }
                 let rec = 1 + ntags + nn;
                 self.c
-                    .check_fits(k as u64, rec as u64 * 4, "element block")?;
+                    .check_fits(k as u64, (rec as u64).saturating_mul(4), "element block")?;
                 for _ in 0..k {
                     let mut v = Vec::with_capacity(rec);
                     for _ in 0..rec {
@@ -523,15 +523,30 @@ impl Parser<'_> {
         } else {
             for elem in 0..n {
                 let v = self.ascii_line_ints("element")?;
-                if v.len() < 3 || v.len() < 3 + v[2].max(0) as usize {
-                    return Err(MeshError::BadCell {
-                        path: self.c.path.to_path_buf(),
-                        cell: elem,
-                        reason: format!("element line has {} numbers", v.len()),
-                    });
-                }
-                let ntags = v[2] as usize;
-                self.push_element(mesh, elem, v[1], &v[3 + ntags..])?;
+                // `number-of-tags` is read from the file: negative or past the line is an error
+                // (not a slice panic, not an overflow).
+                let nodes_at = match v.get(2) {
+                    Some(&t) => usize::try_from(t)
+                        .ok()
+                        .and_then(|t| t.checked_add(3))
+                        .filter(|&at| at <= v.len())
+                        .ok_or_else(|| MeshError::BadCell {
+                            path: self.c.path.to_path_buf(),
+                            cell: elem,
+                            reason: format!(
+                                "tag count {t} is negative or exceeds the {} numbers of the element line",
+                                v.len()
+                            ),
+                        })?,
+                    None => {
+                        return Err(MeshError::BadCell {
+                            path: self.c.path.to_path_buf(),
+                            cell: elem,
+                            reason: format!("element line has {} numbers", v.len()),
+                        });
+                    }
+                };
+                self.push_element(mesh, elem, v[1], &v[nodes_at..])?;
             }
         }
         Ok(())

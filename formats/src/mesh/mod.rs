@@ -110,7 +110,27 @@ pub enum MeshError {
     /// The extension is not a mesh format read here.
     #[error("{}: {reason}", path.display())]
     UnknownFormat { path: PathBuf, reason: String },
+    /// `.pvd` collections that lead back to one already being read (`chain` is the path of
+    /// references, ending at the repeated file), or nest deeper than [`MAX_PVD_DEPTH`].
+    #[error("{}: {reason}: {}", path.display(), show_chain(chain))]
+    Cycle {
+        path: PathBuf,
+        chain: Vec<PathBuf>,
+        reason: String,
+    },
 }
+
+fn show_chain(chain: &[PathBuf]) -> String {
+    chain
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(" -> ")
+}
+
+/// How deep `.pvd` collections may refer to collections (each level is one stack frame of the
+/// reader; real files have at most one level).
+pub const MAX_PVD_DEPTH: usize = 16;
 
 impl MeshError {
     /// The file the error is about.
@@ -124,7 +144,8 @@ impl MeshError {
             | MeshError::Unsupported { path, .. }
             | MeshError::Mesh { path, .. }
             | MeshError::Topology { path, .. }
-            | MeshError::UnknownFormat { path, .. } => path,
+            | MeshError::UnknownFormat { path, .. }
+            | MeshError::Cycle { path, .. } => path,
         }
     }
 
@@ -338,6 +359,24 @@ impl RawMesh {
                 source: TetError::Empty,
             });
         }
+        // Finite but huge coordinates would open and then fail as a non-finite camera (the
+        // renderer squares lengths in f32): refuse them here, naming the point.
+        let limit = volume_core::volume::MAX_WORLD_COORD;
+        if let Some((i, p)) = self
+            .points
+            .iter()
+            .enumerate()
+            .find(|(_, p)| p.iter().any(|c| c.is_finite() && c.abs() > limit))
+        {
+            return Err(MeshError::BadArray {
+                path: path.to_path_buf(),
+                name: "points".to_owned(),
+                reason: format!(
+                    "point {i} at {p:?} lies beyond the ±{limit:e} that single-precision \
+                     rendering supports"
+                ),
+            });
+        }
         let points = volume_core::tet::points_from_f64(&self.points);
         let mesh = TetMesh::new(points, tets, fields).map_err(|source| MeshError::Mesh {
             path: path.to_path_buf(),
@@ -482,12 +521,40 @@ pub fn read_mesh(path: &Path) -> Result<LoadedMesh, MeshError> {
 
 /// Parses a mesh file into the format-neutral [`RawMesh`] (no validation or splitting yet).
 pub fn read_raw(path: &Path) -> Result<RawMesh, MeshError> {
+    read_raw_within(path, &mut Vec::new())
+}
+
+/// The identity of a file for cycle detection: its canonical path (symbolic links and `..`
+/// resolved), or the path as given when it cannot be resolved (then opening fails anyway).
+fn file_key(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// [`read_raw`] inside the `.pvd` collections of `chain` (outermost first, canonical paths):
+/// a `.pvd` already in the chain is a cycle, reported with the whole chain instead of
+/// recursing until the stack overflows.
+pub(crate) fn read_raw_within(path: &Path, chain: &mut Vec<PathBuf>) -> Result<RawMesh, MeshError> {
     match MeshFormat::from_path(path) {
         Some(MeshFormat::VtkLegacy) => vtk_legacy::read_raw(path),
         Some(MeshFormat::Vtu) => vtu::read_raw(path),
         Some(MeshFormat::Gmsh) => gmsh::read_raw(path),
         Some(MeshFormat::TetGen) => tetgen::read_raw(path),
         Some(MeshFormat::Pvd) => {
+            let key = file_key(path);
+            if chain.contains(&key) || chain.len() >= MAX_PVD_DEPTH {
+                let cycle = chain.contains(&key);
+                let mut shown = chain.clone();
+                shown.push(key);
+                return Err(MeshError::Cycle {
+                    path: path.to_path_buf(),
+                    chain: shown,
+                    reason: if cycle {
+                        "the .pvd collections refer to each other in a cycle".to_owned()
+                    } else {
+                        format!(".pvd collections nest deeper than {MAX_PVD_DEPTH} levels")
+                    },
+                });
+            }
             let series = read_pvd(path)?;
             let first = series.steps.first().ok_or_else(|| MeshError::Parse {
                 path: path.to_path_buf(),
@@ -495,7 +562,10 @@ pub fn read_raw(path: &Path) -> Result<RawMesh, MeshError> {
                 offset: 0,
                 reason: "the collection lists no data sets".to_owned(),
             })?;
-            read_raw(&first.path)
+            chain.push(key);
+            let raw = read_raw_within(&first.path, chain);
+            chain.pop();
+            raw
         }
         None => Err(MeshError::UnknownFormat {
             path: path.to_path_buf(),
@@ -504,7 +574,8 @@ pub fn read_raw(path: &Path) -> Result<RawMesh, MeshError> {
     }
 }
 
-/// Reads a whole file, as the parsers work on bytes in memory.
+/// Reads a whole file, as the parsers work on bytes in memory (regular files only: see
+/// [`crate::input`]).
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, MeshError> {
-    std::fs::read(path).map_err(|e| MeshError::io(path, e))
+    crate::input::read_regular(path).map_err(|e| MeshError::io(path, e))
 }

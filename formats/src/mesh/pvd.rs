@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use quick_xml::events::Event;
 use volume_core::tet::{PointField, TetMesh};
 
-use super::{LoadedMesh, MeshError, read_file, read_mesh};
+use super::{LoadedMesh, MeshError, read_file};
 
 /// One time step of a series.
 #[derive(Debug, Clone, PartialEq)]
@@ -122,7 +122,13 @@ impl MeshSeries {
             step: i,
             reason: format!("no such step (the series has {})", self.steps.len()),
         })?;
-        read_mesh(&step.path)
+        // A step that is itself a `.pvd` is read inside this series' collection, so that a
+        // collection leading back to this one is reported as a cycle.
+        let mut chain = Vec::new();
+        if super::MeshFormat::from_path(&self.source) == Some(super::MeshFormat::Pvd) {
+            chain.push(super::file_key(&self.source));
+        }
+        super::read_raw_within(&step.path, &mut chain)?.into_tet_mesh(&step.path)
     }
 
     /// Loads step `i` and checks it against `reference` (usually step 0): same point count

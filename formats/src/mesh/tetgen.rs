@@ -106,6 +106,9 @@ pub fn parse(
     }
     e.skip_ws_comments();
     let region: usize = e.parse("region attribute flag")?;
+    if region > 1 {
+        return Err(e.err(format!("region attribute flag {region} is not 0 or 1")));
+    }
     mesh.kinds = Vec::with_capacity(nt);
     mesh.connectivity = Vec::with_capacity(nt * 4);
     mesh.offsets = Vec::with_capacity(nt + 1);
@@ -126,7 +129,8 @@ pub fn parse(
             e.skip_ws_comments();
             let at = e.pos;
             let v: i64 = e.parse("node index")?;
-            let local = v - base;
+            // `base` is 0 or 1; `i64::MIN - 1` must be an error, not an overflow.
+            let local = v.checked_sub(base).unwrap_or(-1);
             if local < 0 {
                 return Err(MeshError::BadCell {
                     path: ele_path.to_path_buf(),

@@ -353,7 +353,7 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<RawMesh, MeshError> {
             format!("Points have {} components, expected 3", pts.components),
         ));
     }
-    let p = ctx.floats(pts, n_points * 3)?;
+    let p = ctx.floats(pts, n_points.saturating_mul(3))?;
     mesh.points = p.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
 
     let cell_array = |name: &str| -> Result<&ArraySpec<'_>, MeshError> {
@@ -540,7 +540,15 @@ impl Ctx<'_> {
 
     /// The decoded bytes of a binary or appended array, exactly `count` values of `ty`.
     fn bytes(&self, a: &ArraySpec<'_>, count: usize, ty: Scalar) -> Result<Vec<u8>, MeshError> {
-        let expected = (count as u64).saturating_mul(ty.size() as u64);
+        let expected = (count as u64)
+            .checked_mul(ty.size() as u64)
+            .filter(|&n| usize::try_from(n).is_ok())
+            .ok_or_else(|| {
+                self.bad(
+                    a,
+                    format!("{count} values of {} overflow a byte count", ty.xml_name()),
+                )
+            })?;
         let decoded;
         let block: &[u8] = match a.format {
             Format::Binary => {
@@ -567,7 +575,7 @@ impl Ctx<'_> {
                         .appended_offsets
                         .iter()
                         .find(|&&o| o > off)
-                        .map(|&o| base + o);
+                        .map(|&o| base.saturating_add(o));
                     let mut end = next.unwrap_or(self.data.len()).min(self.data.len());
                     if next.is_none() {
                         end = start
@@ -644,7 +652,10 @@ impl Ctx<'_> {
         if total != expected || (nblocks > 1 && last_size > block_size) {
             return Err(self.bad(a, format!("compressed blocks hold {total} bytes, expected {expected} ({count} values of {})", ty.xml_name())));
         }
-        let mut out = Vec::with_capacity(expected as usize);
+        // The header's sizes are claims: nothing is reserved from them. `out` grows only as
+        // zlib produces bytes, each block capped at its declared size (+1 to detect surplus),
+        // and a block claiming more than its compressed bytes can inflate to is refused first.
+        let mut out = Vec::new();
         let mut pos = head_len as usize;
         for b in 0..nblocks as usize {
             let csize = self.header_word(&block[(3 + b) * hs..(4 + b) * hs]);
@@ -657,6 +668,15 @@ impl Ctx<'_> {
             } else {
                 block_size
             };
+            if want > max_inflated(csize) {
+                return Err(self.bad(
+                    a,
+                    format!(
+                        "zlib block {b} claims {want} bytes from {csize} compressed bytes, more than zlib can inflate to ({})",
+                        max_inflated(csize)
+                    ),
+                ));
+            }
             let before = out.len();
             let mut dec = flate2::read::ZlibDecoder::new(&block[pos..end as usize]).take(want + 1);
             dec.read_to_end(&mut out)
@@ -674,6 +694,13 @@ impl Ctx<'_> {
         }
         Ok(out)
     }
+}
+
+/// The most bytes `compressed` bytes of a zlib stream can inflate to: deflate's best ratio is
+/// 1032:1 (a 258-byte match per 2 bits), plus slack for the stream header and a final
+/// partial block.
+fn max_inflated(compressed: u64) -> u64 {
+    compressed.saturating_mul(1032).saturating_add(1024)
 }
 
 fn xml_escape(s: &str) -> String {

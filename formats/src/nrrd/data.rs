@@ -7,7 +7,6 @@
 //! only as data actually arrives, so a header that lies about the sizes cannot make us
 //! allocate more than the stream holds (plus one byte to detect surplus data).
 
-use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
@@ -108,7 +107,7 @@ impl DataPlan {
             return Ok(m);
         }
         let path = &self.files[f];
-        let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+        let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
         let file_len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
         let need = self.per_file_bytes;
         let data_start = if self.byte_skip == -1 {
@@ -193,7 +192,7 @@ impl DataPlan {
     /// Decodes bytes `[a, b)` of data file `f` (compressed or text) onto `out`.
     fn decode_range(&self, f: usize, a: u64, b: u64, out: &mut Vec<u8>) -> Result<(), FormatError> {
         let path = &self.files[f];
-        let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+        let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
         let file_len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
         let mut reader = BufReader::with_capacity(1 << 16, file);
         let data_start = self.skip_lines(path, &mut reader, file_len)?;
@@ -208,9 +207,10 @@ impl DataPlan {
                     Box::new(bzip2::bufread::MultiBzDecoder::new(reader))
                 };
                 // Teem applies the byte skip to the decompressed data.
-                read_exact_capped(path, name, &mut dec, skip + a, None)?;
+                // `byte skip` is the header's word (up to i64::MAX): saturate, never wrap.
+                read_exact_capped(path, name, &mut dec, skip.saturating_add(a), None)?;
                 read_exact_capped(path, name, &mut dec, b - a, Some(out))
-                    .map_err(|e| shift_offset(e, skip + a))?;
+                    .map_err(|e| shift_offset(e, skip.saturating_add(a)))?;
                 if whole_tail {
                     let mut one = [0u8; 1];
                     match dec.read(&mut one) {
@@ -218,7 +218,7 @@ impl DataPlan {
                         Ok(_) => {
                             return Err(FormatError::TooLong {
                                 path: path.clone(),
-                                offset: skip + b,
+                                offset: skip.saturating_add(b),
                                 expected: self.per_file_bytes,
                             });
                         }
@@ -226,7 +226,7 @@ impl DataPlan {
                             return Err(FormatError::Decode {
                                 path: path.clone(),
                                 encoding: name,
-                                offset: skip + b,
+                                offset: skip.saturating_add(b),
                                 reason: e.to_string(),
                             });
                         }

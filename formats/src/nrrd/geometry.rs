@@ -194,16 +194,66 @@ impl NrrdHeader {
             })
         });
         let geometry = |e| FormatError::geometry(path, e);
-        if axis_aligned {
-            return Grid::uniform(dims, origin.to_array(), spacing).map_err(geometry);
-        }
-        let axes = spacing.map(|s| AxisCoords::Uniform {
-            origin: 0.0,
-            spacing: s,
+        let (axes, world_from_grid) = if axis_aligned {
+            let axes = [0, 1, 2].map(|i| AxisCoords::Uniform {
+                origin: origin[i],
+                spacing: spacing[i],
+            });
+            (axes, None)
+        } else {
+            let axes = spacing.map(|s| AxisCoords::Uniform {
+                origin: 0.0,
+                spacing: s,
+            });
+            let m = DAffine3::from_mat3_translation(
+                DMat3::from_cols(cols[0], cols[1], cols[2]),
+                origin,
+            );
+            (axes, Some(m))
+        };
+        let origin_too_far = origin.abs().max_element() > volume_core::volume::MAX_WORLD_COORD;
+        let field = if origin_too_far {
+            "space origin"
+        } else {
+            "space directions"
+        };
+        self.check_coordinates(path, field, spatial, dims, &axes, world_from_grid)?;
+        Grid::new(dims, axes, world_from_grid).map_err(geometry)
+    }
+
+    /// Refuses coordinates that single-precision rendering cannot handle, naming the header
+    /// field that put them there (rather than failing later as a non-finite camera).
+    fn check_coordinates(
+        &self,
+        path: &Path,
+        field: &str,
+        spatial: [usize; 3],
+        dims: [usize; 3],
+        axes: &[AxisCoords; 3],
+        world_from_grid: Option<DAffine3>,
+    ) -> Result<(), FormatError> {
+        use volume_core::volume::{MAX_WORLD_COORD, coordinate_overflow};
+        // Non-finite parts are reported by `Grid::new` with its own reason.
+        let finite = axes.iter().all(|a| match a {
+            AxisCoords::Uniform { origin, spacing } => origin.is_finite() && spacing.is_finite(),
+            AxisCoords::Explicit(c) => c.iter().all(|x| x.is_finite()),
         });
-        let world_from_grid =
-            DAffine3::from_mat3_translation(DMat3::from_cols(cols[0], cols[1], cols[2]), origin);
-        Grid::new(dims, axes, Some(world_from_grid)).map_err(geometry)
+        if !finite {
+            return Ok(());
+        }
+        match coordinate_overflow(dims, axes, world_from_grid) {
+            None => Ok(()),
+            Some((i, x)) => Err(FormatError::BadValue {
+                path: path.to_path_buf(),
+                line: self.line_of(field),
+                field: field.to_string(),
+                reason: format!(
+                    "axis {}: with {} samples a coordinate reaches {x:e}, beyond the \
+                     ±{MAX_WORLD_COORD:e} that single-precision rendering supports",
+                    spatial[i], dims[i]
+                ),
+            }),
+        }
     }
 
     fn axis_grid(
@@ -281,6 +331,23 @@ impl NrrdHeader {
                 }
                 (None, min, _) => origin[i] = min.unwrap_or(0.0),
             }
+        }
+        let axes = [0, 1, 2].map(|i| AxisCoords::Uniform {
+            origin: origin[i],
+            spacing: spacing[i],
+        });
+        if let Some((i, _)) = volume_core::volume::coordinate_overflow(dims, &axes, None) {
+            // Name the field that set this axis: its min, else its spacing, else its max.
+            let a = spatial[i];
+            let far = |x: f64| x.abs() > volume_core::volume::MAX_WORLD_COORD;
+            let field = if get(&self.axis_mins, a).is_some_and(far) {
+                "axis mins"
+            } else if get(&self.spacings, a).is_some() {
+                "spacings"
+            } else {
+                "axis maxs"
+            };
+            self.check_coordinates(path, field, spatial, dims, &axes, None)?;
         }
         Grid::uniform(dims, origin, spacing).map_err(|e| FormatError::geometry(path, e))
     }

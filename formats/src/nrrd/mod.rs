@@ -17,7 +17,6 @@ mod data;
 mod steps;
 mod write;
 
-use std::fs::File;
 use std::io::Read;
 use std::path::Path;
 use std::sync::Arc;
@@ -39,7 +38,7 @@ use crate::error::FormatError;
 /// Reads the header bytes of `path`: up to and including the first blank line (attached
 /// data follows it) or the whole file for a detached header, at most [`MAX_HEADER_BYTES`].
 pub fn read_header_bytes(path: &Path) -> Result<Vec<u8>, FormatError> {
-    let mut file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let mut file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
     let mut buf = Vec::new();
     let mut chunk = vec![0u8; 1 << 16];
     loop {

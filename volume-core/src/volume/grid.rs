@@ -30,6 +30,67 @@ impl AxisCoords {
     }
 }
 
+/// Largest magnitude a sample's world coordinate may have. The renderer works in `f32` and
+/// squares lengths (bounding-sphere radius, eye distance, `|d|²` in the ray setup); `f32`
+/// squares overflow above ~1.8e19, so coordinates are kept below 1e15, which leaves room for
+/// the camera's distance factor and sums of squares. Beyond it a volume would open and then
+/// fail later as a non-finite camera.
+pub const MAX_WORLD_COORD: f64 = 1e15;
+
+/// The first sample coordinate of a grid beyond ±[`MAX_WORLD_COORD`]: `(grid axis, value)`.
+/// Checks each axis's first and last sample in the grid frame, then the world positions of
+/// the eight corners (reported on the grid axis with the largest extent). Inputs are finite
+/// (checked by [`Grid::new`] first).
+pub fn coordinate_overflow(
+    dims: [usize; 3],
+    axes: &[AxisCoords; 3],
+    world_from_grid: Option<DAffine3>,
+) -> Option<(usize, f64)> {
+    let range = |a: usize| match &axes[a] {
+        AxisCoords::Uniform { origin, spacing } => {
+            (*origin, origin + dims[a].saturating_sub(1) as f64 * spacing)
+        }
+        // Strictly increasing (checked by `Grid::new`): the ends are the extremes.
+        AxisCoords::Explicit(c) => (
+            c.first().copied().unwrap_or(0.0),
+            c.last().copied().unwrap_or(0.0),
+        ),
+    };
+    let ranges = [range(0), range(1), range(2)];
+    for (a, &(lo, hi)) in ranges.iter().enumerate() {
+        for x in [lo, hi] {
+            if x.abs() > MAX_WORLD_COORD || x.is_nan() {
+                return Some((a, x));
+            }
+        }
+    }
+    let m = world_from_grid?;
+    let widest = (0..3)
+        .max_by(|&a, &b| {
+            let w = |a: usize| (ranges[a].1 - ranges[a].0).abs();
+            w(a).total_cmp(&w(b))
+        })
+        .unwrap_or(0);
+    for corner in 0..8 {
+        let pick = |a: usize| {
+            if (corner >> a) & 1 == 0 {
+                ranges[a].0
+            } else {
+                ranges[a].1
+            }
+        };
+        let p = m.transform_point3(DVec3::new(pick(0), pick(1), pick(2)));
+        if let Some(&x) = p
+            .to_array()
+            .iter()
+            .find(|x| x.abs() > MAX_WORLD_COORD || x.is_nan())
+        {
+            return Some((widest, x));
+        }
+    }
+    None
+}
+
 /// The geometry of a rectilinear volume.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Grid {
@@ -54,8 +115,8 @@ impl Grid {
     }
 
     /// A grid from explicit parts, validated: no zero or overflowing dims, positive finite
-    /// spacing, explicit coordinates strictly increasing with one entry per sample, and an
-    /// invertible finite `world_from_grid`.
+    /// spacing, explicit coordinates strictly increasing with one entry per sample, an
+    /// invertible finite `world_from_grid`, and every sample within ±[`MAX_WORLD_COORD`].
     pub fn new(
         dims: [usize; 3],
         axes: [AxisCoords; 3],
@@ -111,6 +172,15 @@ impl Grid {
             if !(det.is_finite() && det != 0.0 && m.translation.is_finite()) {
                 return Err(VolumeError::SingularTransform);
             }
+        }
+        if let Some((axis, x)) = coordinate_overflow(dims, &axes, world_from_grid) {
+            return Err(VolumeError::BadAxis {
+                axis,
+                reason: format!(
+                    "a sample lies at coordinate {x:e}, beyond the ±{MAX_WORLD_COORD:e} that \
+                     single-precision rendering supports"
+                ),
+            });
         }
         Ok(Self {
             dims,
@@ -240,6 +310,32 @@ mod tests {
             Grid::new([2, 2, 2], [u.clone(), u.clone(), u], Some(singular)),
             Err(VolumeError::SingularTransform)
         );
+    }
+
+    #[test]
+    fn rejects_coordinates_beyond_single_precision_rendering() {
+        // 255 samples of 1e30: finite in f32, but its squares (camera distance) are not.
+        let e = Grid::uniform([256, 2, 2], [0.0; 3], [1e30, 1.0, 1.0]).unwrap_err();
+        assert!(
+            matches!(&e, VolumeError::BadAxis { axis: 0, reason } if reason.contains("single-precision")),
+            "{e}"
+        );
+        assert!(matches!(
+            Grid::uniform([2, 2, 2], [0.0, 0.0, -2e15], [1.0; 3]),
+            Err(VolumeError::BadAxis { axis: 2, .. })
+        ));
+        let u = AxisCoords::Uniform {
+            origin: 0.0,
+            spacing: 1.0,
+        };
+        let far = DAffine3::from_translation(DVec3::new(0.0, 5e15, 0.0));
+        assert!(matches!(
+            Grid::new([2, 3, 2], [u.clone(), u.clone(), u.clone()], Some(far)),
+            Err(VolumeError::BadAxis { .. })
+        ));
+        // Large but representable grids still open.
+        assert!(Grid::uniform([256, 2, 2], [-1e14, 0.0, 0.0], [1e11, 1.0, 1.0]).is_ok());
+        assert!(Grid::new([2, 2, 2], [u.clone(), u.clone(), u], None).is_ok());
     }
 
     #[test]

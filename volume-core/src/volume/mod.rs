@@ -12,7 +12,7 @@ mod buffer;
 mod grid;
 
 pub use buffer::{ByteSource, VoxelBuffer, VoxelData};
-pub use grid::{AxisCoords, Grid};
+pub use grid::{AxisCoords, Grid, MAX_WORLD_COORD, coordinate_overflow};
 
 use crate::error::VolumeError;
 use crate::stats::ValueStats;
