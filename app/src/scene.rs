@@ -61,7 +61,6 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, bail};
 use formats::mesh::{LoadedMesh, MeshSeries, StepData};
 use volume_core::grid::AnyGridScene;
-use volume_core::{RectilinearVolume, VoxelType};
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::ooc::{AnyOocVolume, OocOptions};
@@ -70,6 +69,7 @@ use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, render};
 use volume_core::series::TimeSeries;
 use volume_core::stats::Histogram;
 use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
+use volume_core::{RectilinearVolume, VoxelType};
 
 /// The three kinds of scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
