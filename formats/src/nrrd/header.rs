@@ -934,7 +934,8 @@ fn check_printf(format: &str) -> Result<(), String> {
     }
 }
 
-/// Formats `n` with a format checked by [`check_printf`].
+/// Formats `n` with a printf format that has exactly one integer conversion (`%d`, `%03d`,
+/// `%i`, `%u`), as the header parser checks for data file patterns.
 pub fn format_printf(format: &str, n: i64) -> String {
     let mut out = String::new();
     let mut chars = format.chars().peekable();
