@@ -30,7 +30,8 @@
 //! Traversal ([`KdTree::first_hit`]) is single-ray front to back with isovalue culling
 //! (§7.2.1), robust for rays lying in a split plane (seed 000 §5, Havran: both children are
 //! visited, since the surface on a shared face may belong to either cell), with any number
-//! of isovalues in one pass.
+//! of isovalues in one pass. That child-ordering step is written once (`step.rs`) and shared
+//! with the packet traversal and the out-of-core one ([`crate::ooc`]).
 
 mod packet;
 pub(crate) mod step;
