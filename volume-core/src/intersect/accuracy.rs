@@ -7,7 +7,7 @@
 //! where both hit. It runs on any volume and any rays (camera rays for the
 //! Marschner–Lobb tables of docs/accuracy.md).
 //!
-//! [`extreme_suite`] builds the hard cases of issue 3: grazing and axis-parallel rays, rays
+//! [`extreme_suite`] builds the hard cases for the cell intersectors (seed 004 §7.2.2): grazing and axis-parallel rays, rays
 //! along cell faces and edges, tangent (double-root) and triple-root cells, integer data at
 //! integer isovalues, constant cells, NaN and ±inf voxels, values near the `f32` limits and
 //! denormals, a volume far from the origin, one-cell-thin volumes and a camera inside the
