@@ -5,9 +5,9 @@
 //! against [`Voxel`]; code that holds a volume of unknown type matches on
 //! [`crate::VoxelData`] once, outside any hot loop, with [`crate::dispatch_voxels!`].
 //!
-//! The eight types are listed once, in [`for_each_voxel_type!`]: the per-type enums
-//! ([`voxel_enum!`]) and the matches over them ([`match_voxel!`], [`match_voxel_type!`]) are
-//! generated from that list.
+//! The eight types are listed once, in [`crate::for_each_voxel_type!`]: the per-type
+//! enums ([`crate::voxel_enum!`]) and the matches over them ([`crate::match_voxel!`],
+//! [`crate::match_voxel_type!`]) are generated from that list.
 
 use std::fmt::Debug;
 
@@ -189,8 +189,8 @@ impl Voxel for f64 {
 /// The one list of voxel types: calls `$callback! { $args ; U8 u8, I8 i8, ... }` with each
 /// [`VoxelType`] variant next to its Rust type. Every per-type enum ([`crate::VoxelData`],
 /// [`crate::grid::AnyGridScene`], [`crate::ooc::AnyOocVolume`]) and every match over voxel
-/// types is generated from it, through [`voxel_enum!`], [`match_voxel!`] and
-/// [`match_voxel_type!`].
+/// types is generated from it, through [`crate::voxel_enum!`], [`crate::match_voxel!`] and
+/// [`crate::match_voxel_type!`].
 #[macro_export]
 macro_rules! for_each_voxel_type {
     ($($callback:ident)::+, $($args:tt)*) => {
@@ -203,7 +203,7 @@ macro_rules! for_each_voxel_type {
 
 /// Declares an enum with one variant per voxel type, each holding `$inner<T>` (variants
 /// named as in [`VoxelType`]), with `voxel_type()` and `From<$inner<T>>` for every type.
-/// Match it with [`match_voxel!`].
+/// Match it with [`crate::match_voxel!`].
 #[macro_export]
 macro_rules! voxel_enum {
     ($(#[$meta:meta])* $vis:vis enum $name:ident($inner:ident)) => {
@@ -235,8 +235,8 @@ macro_rules! voxel_enum {
 }
 
 /// Runs `$body` with `$x` bound to the typed value inside `$value`, an enum made by
-/// [`voxel_enum!`] (`$enum` is its type). Match once, outside any hot loop, and run generic
-/// code on the typed value. The second form matches two such enums together
+/// [`crate::voxel_enum!`] (`$enum` is its type). Match once, outside any hot loop, and
+/// run generic code on the typed value. The second form matches two such enums together
 /// (`match_voxel!(A, a, x; B, b, y => same_type(x, y); else different())`).
 #[macro_export]
 macro_rules! match_voxel {

@@ -17,7 +17,7 @@
 //! Memory is bounded independently of the input size: the finest data is read in place
 //! (a memory map pages it in and out) in two sequential passes. Pass 1 walks the input
 //! z-plane by z-plane, computing the value range and streaming the planes through a
-//! cascade of decimation stages ([`HalveStage`]: three planes each), so only the coarse LOD
+//! cascade of decimation stages (`HalveStage`: three planes each), so only the coarse LOD
 //! levels themselves are kept (about `input / 2^height`, 1/512 at the default height 9).
 //! Pass 2 encodes the finest treelets in index order, which is z-slab order, in parallel
 //! batches handed to the sink in order (a batch is written while the next is encoded), then
@@ -25,9 +25,9 @@
 //! (`2 × voxels` in all).
 //!
 //! Cost per input voxel (target: ≥ 100 MB/s on 2 cores, docs/benchmarks.md): integer volumes halve
-//! separably in exact arithmetic ([`halve_plane_exact`]); a treelet's ranges come from
+//! separably in exact arithmetic (`halve_plane_exact`); a treelet's ranges come from
 //! separable cell ranges reduced bottom-up over its heap, and node codes of ≤ 16-bit types
-//! from a table ([`NodeCodes`]). Each fast path has a brute-force twin in the tests and
+//! from a table (`NodeCodes`). Each fast path has a brute-force twin in the tests and
 //! gives the same bytes.
 
 use std::time::{Duration, Instant};
@@ -587,7 +587,7 @@ fn encode_treelet_reference<T: Voxel>(
     (root_range, rec.encode())
 }
 
-/// The coarse LOD levels built in one streamed pass: a cascade of [`HalveStage`]s fed the
+/// The coarse LOD levels built in one streamed pass: a cascade of `HalveStage`s fed the
 /// input's z-planes; a level's planes are kept when its stage emits them. Memory: three
 /// planes per stage plus the coarse levels themselves (level `L` has `1 / 2^(height ·
 /// (levels − 1 − L))` of the input's cells, so about `input / 2^height` in all).
@@ -666,7 +666,7 @@ impl<T: Voxel> Pyramid<T> {
 }
 
 /// One 2× decimation step along the axes in `halve` (see the module docs), on a whole
-/// volume; the build streams the same arithmetic plane by plane ([`HalveStage`]). The
+/// volume; the build streams the same arithmetic plane by plane (`HalveStage`). The
 /// tests' independent pyramid.
 #[cfg(test)]
 pub(crate) fn halve_lod<T: Voxel>(
@@ -774,7 +774,7 @@ impl<T: Voxel> HalveStage<T> {
 
 /// One output plane of a decimation step from its (clamped) input planes `[z − 1, z, z + 1]`
 /// (only the middle one is read when z is not halved). Integer voxels take the separable
-/// exact path ([`halve_plane_exact`]), floats the per-tap path with void taps left out.
+/// exact path (`halve_plane_exact`), floats the per-tap path with void taps left out.
 fn halve_plane<T: Voxel>(
     planes: [&[T]; 3],
     sdims: [u64; 3],
@@ -791,7 +791,7 @@ fn halve_plane<T: Voxel>(
     }
 }
 
-/// Accumulator of [`halve_plane_exact`].
+/// Accumulator of `halve_plane_exact`.
 trait ExactSum:
     Copy + Send + Sync + std::ops::Add<Output = Self> + std::ops::Mul<Output = Self>
 {

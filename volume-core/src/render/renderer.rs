@@ -11,7 +11,7 @@
 //! Inside a tile, rays are ordered along a Morton curve, so every aligned run of 4, 8, 16, …
 //! rays covers a compact 2×2, 4×2, 4×4, … block (good packets for 4- and 8-wide SIMD
 //! traversal and for frusta). Rays come from per-column and per-row camera terms computed
-//! once per tile ([`RayGen::column`], [`RayGen::row`]), bit-identical to
+//! once per tile (`RayGen::column`, `RayGen::row`), bit-identical to
 //! [`RayGen::ray_at`]; the same 8-wide pass cuts them to the volume bounds (bit-identical to
 //! [`Aabb::intersect`]). Only samples whose ray meets the bounds (and, when there are clip
 //! regions, keeps a clip interval, [`super::clip`]) get a per-ray state; the tile is painted

@@ -29,7 +29,7 @@
 //! leaf with hits (and the packet's with it): once a region of the packet has found the
 //! surface, nodes behind it are culled by one frustum test instead of per-ray tests.
 //!
-//! The rays are held as 8-wide SoA blocks ([`super::simd`]): the first-active search tests
+//! The rays are held as 8-wide SoA blocks (`tet/simd.rs`): the first-active search tests
 //! 8 rays per step and each isopolygon is tested against 8 rays at once, with results
 //! bit-identical to the scalar tests. A block's watertight ray space (dominant axis, shear:
 //! three divisions) is set up at its first isopolygon test, so blocks that never reach one
