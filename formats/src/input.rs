@@ -18,7 +18,7 @@ use std::io::{self, Read};
 use std::path::Path;
 
 /// What a non-regular file is, for messages (`None` for a regular file).
-fn special_kind(t: &FileType) -> Option<&'static str> {
+fn special_kind(t: FileType) -> Option<&'static str> {
     if t.is_file() {
         return None;
     }
@@ -44,7 +44,7 @@ fn special_kind(t: &FileType) -> Option<&'static str> {
     Some("not a file")
 }
 
-fn check(t: &FileType) -> io::Result<()> {
+fn check(t: FileType) -> io::Result<()> {
     match special_kind(t) {
         None => Ok(()),
         Some(kind) => Err(io::Error::new(
@@ -56,14 +56,14 @@ fn check(t: &FileType) -> io::Result<()> {
 
 /// Checks that `path` (after following symbolic links) is a regular file, without opening it.
 pub fn check_regular(path: &Path) -> io::Result<()> {
-    check(&std::fs::metadata(path)?.file_type())
+    check(std::fs::metadata(path)?.file_type())
 }
 
 /// Opens `path` for reading if it is a regular file (see the module docs).
 pub fn open_regular(path: &Path) -> io::Result<File> {
     check_regular(path)?;
     let file = File::open(path)?;
-    check(&file.metadata()?.file_type())?;
+    check(file.metadata()?.file_type())?;
     Ok(file)
 }
 
@@ -71,7 +71,7 @@ pub fn open_regular(path: &Path) -> io::Result<File> {
 pub fn read_regular(path: &Path) -> io::Result<Vec<u8>> {
     let mut file = open_regular(path)?;
     // The length is a hint only (the file may change); `read_to_end` grows as bytes arrive.
-    let hint = file.metadata().map_or(0, |m| m.len());
+    let hint = file.metadata().as_ref().map_or(0, std::fs::Metadata::len);
     let mut out = Vec::with_capacity(usize::try_from(hint).unwrap_or(0));
     file.read_to_end(&mut out)?;
     Ok(out)

@@ -6,7 +6,7 @@
 //! instead of blocking the suite.
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::mpsc;
 use std::time::Duration;
 
@@ -48,8 +48,8 @@ fn nrrd_bytes(dims: [usize; 3], extra: &str) -> Vec<u8> {
     b
 }
 
-fn open(path: PathBuf) -> Result<formats::Dataset, FormatError> {
-    formats::open(&path, &OpenOptions::default())
+fn open(path: &Path) -> Result<formats::Dataset, FormatError> {
+    formats::open(path, &OpenOptions::default())
 }
 
 const TET_VTU: &str = r#"<?xml version="1.0"?>
@@ -87,7 +87,7 @@ fn fifo_named_like_a_volume_is_refused_not_waited_on() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("x.nrrd");
     mkfifo(&p);
-    let e = within(10, "open FIFO x.nrrd", move || open(p).map(|_| ()));
+    let e = within(10, "open FIFO x.nrrd", move || open(&p).map(|_| ()));
     assert_special(&e.unwrap_err().to_string(), "x.nrrd", "FIFO");
 }
 
@@ -102,7 +102,7 @@ fn fifo_as_detached_data_file_is_refused() {
     .unwrap();
     mkfifo(&dir.path().join("d.raw"));
     let e = within(10, "open a.nhdr with a FIFO data file", move || {
-        open(h).map(|_| ())
+        open(&h).map(|_| ())
     });
     assert_special(&e.unwrap_err().to_string(), "d.raw", "FIFO");
     // Gzip data is streamed rather than mapped: the same check applies.
@@ -113,7 +113,7 @@ fn fifo_as_detached_data_file_is_refused() {
     )
     .unwrap();
     let e = within(10, "open b.nhdr (gzip) with a FIFO data file", move || {
-        open(h).map(|_| ())
+        open(&h).map(|_| ())
     });
     assert_special(&e.unwrap_err().to_string(), "d.raw", "FIFO");
 }
@@ -164,7 +164,9 @@ fn every_reader_refuses_special_files() {
     std::fs::write(d.join("r.raw"), [0u8; 8]).unwrap();
     mkfifo(&d.join("r.json"));
     let p = d.join("r.raw");
-    let e = within(10, "r.raw with a FIFO sidecar", move || open(p).map(|_| ()));
+    let e = within(10, "r.raw with a FIFO sidecar", move || {
+        open(&p).map(|_| ())
+    });
     assert_special(&e.unwrap_err().to_string(), "r.json", "FIFO");
     mkfifo(&d.join("f.raw"));
     let p = d.join("f.raw");
@@ -189,7 +191,7 @@ fn every_reader_refuses_special_files() {
             if name.ends_with(".isot") {
                 formats::treelet::IsotFile::open(&q).map(|_| ())
             } else {
-                open(q).map(|_| ())
+                open(&q).map(|_| ())
             }
         });
         assert_special(&e.unwrap_err().to_string(), name, "FIFO");
@@ -203,7 +205,7 @@ fn every_reader_refuses_special_files() {
     std::os::unix::fs::symlink(d.join("pipe"), sd.join("v_1.nrrd")).unwrap();
     let pattern = sd.join("v_*.nrrd");
     let e = within(10, "series step linked to a FIFO", move || {
-        let ds = open(pattern).unwrap();
+        let ds = open(&pattern).unwrap();
         let formats::Dataset::Series(ts) = ds else {
             panic!("a series")
         };
@@ -211,7 +213,7 @@ fn every_reader_refuses_special_files() {
     });
     assert_special(&e.unwrap_err(), "v_1.nrrd", "FIFO");
     // A directory given as a volume.
-    let e = open(d.join("series")).unwrap_err().to_string();
+    let e = open(&d.join("series")).unwrap_err().to_string();
     assert!(e.contains("series"), "{e}");
 }
 
@@ -355,7 +357,7 @@ fn spacing_that_overflows_f32_is_rejected_at_open_naming_file_and_field() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("big.nrrd");
     std::fs::write(&p, nrrd_bytes([256, 2, 2], "spacings: 1e30 1 1")).unwrap();
-    let e = open(p).unwrap_err();
+    let e = open(&p).unwrap_err();
     assert_eq!(e.field(), Some("spacings"), "{e}");
     let s = e.to_string();
     assert!(s.contains("big.nrrd") && s.contains("spacings"), "{s}");
@@ -369,7 +371,7 @@ fn spacing_that_overflows_f32_is_rejected_at_open_naming_file_and_field() {
         ),
     )
     .unwrap();
-    let e = open(p).unwrap_err();
+    let e = open(&p).unwrap_err();
     assert_eq!(e.field(), Some("space directions"), "{e}");
     // A raw sidecar.
     let r = dir.path().join("r.raw");
@@ -379,7 +381,7 @@ fn spacing_that_overflows_f32_is_rejected_at_open_naming_file_and_field() {
         r#"{"dims":[2,2,2],"type":"u8","endian":"little","spacing":[1,1,1],"origin":[0,3e20,0]}"#,
     )
     .unwrap();
-    let e = open(r).unwrap_err();
+    let e = open(&r).unwrap_err();
     assert_eq!(e.field(), Some("origin"), "{e}");
     assert!(e.to_string().contains("r.raw"), "{e}");
 }
@@ -401,7 +403,7 @@ fn series_step_of_other_dims_names_the_step_file() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("v_0.nrrd"), nrrd_bytes([2, 2, 2], "")).unwrap();
     std::fs::write(dir.path().join("v_1.nrrd"), nrrd_bytes([3, 2, 2], "")).unwrap();
-    let ds = open(dir.path().join("v_*.nrrd")).unwrap();
+    let ds = open(&dir.path().join("v_*.nrrd")).unwrap();
     let formats::Dataset::Series(ts) = ds else {
         panic!("a series")
     };
