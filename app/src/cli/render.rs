@@ -50,6 +50,8 @@ pub struct IsoSpec {
 }
 
 /// How the camera is chosen (shared by `render` and `bench`).
+// The field docs are clap help text: `[x,y,z]` and `[:N]` are shown as typed, not links.
+#[allow(rustdoc::broken_intra_doc_links)]
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct ViewArgs {
     /// Camera JSON: {"eye":[x,y,z],"target":[x,y,z],"up":[x,y,z],"vfov_deg":40,
@@ -95,6 +97,7 @@ pub fn load_camera(path: &Path) -> anyhow::Result<Camera> {
 }
 
 /// Arguments of `isoscope render`.
+#[allow(rustdoc::broken_intra_doc_links)] // clap help text: `[:N]` is shown as typed
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), a

@@ -1,4 +1,5 @@
-//! Which jobs run, and what their results do: the viewer's side of the [`JobTable`].
+//! Which jobs run, and what their results do: the viewer's side of the
+//! [`JobTable`](super::job_table::JobTable).
 //!
 //! Every frame `ViewerApp::poll_jobs` applies finished jobs, and `ViewerApp::schedule`
 //! compares what the state asks for with what is shown or running and starts what is
