@@ -4,6 +4,8 @@
 //!
 //! - [`cli`]: the subcommands (`info`, `generate`, `render`, `bench`, ...), each a module with
 //!   clap `Args` and a `run` function, so tests call them without spawning a process.
+//! - [`output`]: PNG, `.npy`, report and session outputs through `formats::output` (never
+//!   over an input; atomic; `--force` to replace).
 //! - [`progress`]: indicatif bars that show only for long jobs on a terminal.
 //! - [`scene`]: [`scene::open_scene`] opens grids, tet meshes and `.isot` files as one
 //!   [`scene::AnyScene`] that the CLI and the viewer render through the same call.
@@ -11,6 +13,7 @@
 //!   background jobs, commands, panels and the backend link.
 
 pub mod cli;
+pub mod output;
 pub mod progress;
 pub mod scene;
 pub mod ui;

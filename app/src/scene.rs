@@ -1316,7 +1316,7 @@ mod tests {
     fn write_ball(dir: &Path, n: usize) -> PathBuf {
         let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, n).unwrap();
         let p = dir.join("ball.vtu");
-        formats::mesh::write_vtu(&p, &mesh).unwrap();
+        formats::mesh::write_vtu(&p, &mesh, formats::output::Replace::Refuse).unwrap();
         p
     }
 
@@ -1380,7 +1380,12 @@ mod tests {
                     .iter_mut()
                     .for_each(|p| *p = p.map(|c| c * 1.25));
             }
-            formats::mesh::write_vtu(&dir.path().join(format!("b_{s:03}.vtu")), &mesh).unwrap();
+            formats::mesh::write_vtu(
+                &dir.path().join(format!("b_{s:03}.vtu")),
+                &mesh,
+                formats::output::Replace::Refuse,
+            )
+            .unwrap();
         }
         let pattern = dir.path().join("b_*.vtu");
         let mut scene = open_scene(&pattern, &SceneOptions::default()).unwrap();

@@ -169,7 +169,7 @@ fn info_json_matches_every_generator_in_memory() {
     for (g, dims, t, enc) in cases {
         let v = g.generate(dims, t).unwrap();
         let path = dir.path().join(format!("{g}_{t}.nrrd"));
-        write_nrrd(&path, &v, enc).unwrap();
+        write_nrrd(&path, &v, enc, formats::output::Replace::Refuse).unwrap();
         let j = info_json(&path, &[]);
         check_report(&j, &v);
         assert_eq!(j["file"], path.to_str().unwrap());
@@ -221,7 +221,13 @@ fn non_finite_values_are_counted_and_excluded_from_the_range() {
     vals[7] = f32::NAN;
     let v = RectilinearVolume::new(g.clone(), vals.into()).unwrap();
     let path = dir.path().join("nan.nrrd");
-    write_nrrd(&path, &v, NrrdEncoding::Raw).unwrap();
+    write_nrrd(
+        &path,
+        &v,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
     let j = info_json(&path, &[]);
     check_report(&j, &v);
     assert_eq!(j["nan_count"], 2);
@@ -230,7 +236,13 @@ fn non_finite_values_are_counted_and_excluded_from_the_range() {
 
     let all_nan = RectilinearVolume::new(g, vec![f64::NAN; 24].into()).unwrap();
     let path = dir.path().join("void.nrrd");
-    write_nrrd(&path, &all_nan, NrrdEncoding::Gzip).unwrap();
+    write_nrrd(
+        &path,
+        &all_nan,
+        NrrdEncoding::Gzip,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
     let j = info_json(&path, &[]);
     check_report(&j, &all_nan);
     assert_eq!(j["nan_count"], 24);
@@ -255,7 +267,13 @@ fn oriented_volumes_report_world_from_grid() {
     .unwrap();
     let v = RectilinearVolume::new(grid, (0..60u16).collect::<Vec<_>>().into()).unwrap();
     let path = dir.path().join("oriented.nrrd");
-    write_nrrd(&path, &v, NrrdEncoding::Raw).unwrap();
+    write_nrrd(
+        &path,
+        &v,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
     let j = info_json(&path, &[]);
     let rows = j["world_from_grid"]
         .as_array()
@@ -388,7 +406,13 @@ fn text_output_shows_geometry_range_and_a_64_bin_histogram() {
         .generate([21; 3], VoxelType::U8)
         .unwrap();
     let path = dir.path().join("ml.nrrd");
-    write_nrrd(&path, &v, NrrdEncoding::Raw).unwrap();
+    write_nrrd(
+        &path,
+        &v,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
     let out = isoscope(&["info", path.to_str().unwrap()]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();

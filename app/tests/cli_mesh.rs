@@ -361,7 +361,7 @@ fn bad_meshes_and_flags_give_clear_errors() {
     let m = formats::mesh::read_mesh(&mesh).unwrap().mesh;
     let bare = volume_core::tet::TetMesh::new(m.points, m.tets, Vec::new()).unwrap();
     let bare_path = dir.path().join("bare.vtu");
-    formats::mesh::write_vtu(&bare_path, &bare).unwrap();
+    formats::mesh::write_vtu(&bare_path, &bare, formats::output::Replace::Refuse).unwrap();
     let e = fails(&["render", s(&bare_path), "-o", s(&out)]);
     assert!(e.contains("no scalar point array"), "{e}");
 }

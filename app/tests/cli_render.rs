@@ -20,7 +20,13 @@ fn sphere_volume(dir: &Path) -> std::path::PathBuf {
         .generate([41; 3], VoxelType::F32)
         .unwrap();
     let path = dir.join("sphere.nrrd");
-    write_nrrd(&path, &v, NrrdEncoding::Raw).unwrap();
+    write_nrrd(
+        &path,
+        &v,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
     path
 }
 

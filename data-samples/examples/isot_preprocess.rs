@@ -37,8 +37,13 @@ fn main() {
             let v = Blobs::new(dims_arg(&args[1]), t, 1)
                 .and_then(|b| b.step(0, &|| {}))
                 .expect("blobs");
-            formats::nrrd::write_nrrd(Path::new(&args[3]), &v, formats::nrrd::NrrdEncoding::Raw)
-                .expect("write nrrd");
+            formats::nrrd::write_nrrd(
+                Path::new(&args[3]),
+                &v,
+                formats::nrrd::NrrdEncoding::Raw,
+                formats::output::Replace::Refuse,
+            )
+            .expect("write nrrd");
         }
         Some("gen-sparse") if args.len() == 4 => {
             let d = dims_arg(&args[1]).map(|x| x as u64);
@@ -74,6 +79,7 @@ fn main() {
                 Path::new(&args[2]),
                 volume,
                 layout,
+                formats::output::Replace::Allow,
                 &mut |_, _| {},
             )
             .expect("build");

@@ -20,10 +20,16 @@ fn generated_meshes_round_trip_through_vtu_and_legacy() {
     for shape in TetShape::ALL {
         let m = tet_mesh(shape, 14).unwrap();
         let vtu = dir.join(format!("{shape}.vtu"));
-        mesh::write_vtu(&vtu, &m).unwrap();
+        mesh::write_vtu(&vtu, &m, formats::output::Replace::Refuse).unwrap();
         assert_eq!(mesh::read_mesh(&vtu).unwrap().mesh, m, "{shape} vtu");
         let vtk = dir.join(format!("{shape}.vtk"));
-        mesh::write_vtk_legacy(&vtk, &m, LegacyEncoding::Binary).unwrap();
+        mesh::write_vtk_legacy(
+            &vtk,
+            &m,
+            LegacyEncoding::Binary,
+            formats::output::Replace::Refuse,
+        )
+        .unwrap();
         assert_eq!(mesh::read_mesh(&vtk).unwrap().mesh, m, "{shape} vtk");
     }
     std::fs::remove_dir_all(&dir).unwrap();
@@ -41,7 +47,12 @@ fn moving_gaussian_series_reads_back_with_shared_topology() {
             vec![PointField::new("moving_gaussian", values.clone())],
         )
         .unwrap();
-        mesh::write_vtu(&dir.join(format!("moving_{s:02}.vtu")), &step).unwrap();
+        mesh::write_vtu(
+            &dir.join(format!("moving_{s:02}.vtu")),
+            &step,
+            formats::output::Replace::Refuse,
+        )
+        .unwrap();
     }
     let series = MeshSeries::numbered(&dir.join("moving_00.vtu")).unwrap();
     assert_eq!(series.len(), MOVING_STEPS);

@@ -17,6 +17,16 @@ pub enum FormatError {
         #[source]
         source: std::io::Error,
     },
+    /// An output that is one of the files an input reads (the same device and inode, or the
+    /// same path after resolution).
+    #[error("{}: is the input file {}; refusing to write over it (choose another output)", path.display(), input.display())]
+    OutputIsInput { path: PathBuf, input: PathBuf },
+    /// An output that exists, without permission to replace it.
+    #[error("{}: already exists; pass --force to replace it", path.display())]
+    OutputExists { path: PathBuf },
+    /// An output path that cannot be a new regular file (a device, a directory, no name).
+    #[error("{}: {reason}", path.display())]
+    BadOutput { path: PathBuf, reason: String },
     /// The file does not start with a known magic (e.g. `NRRD0001`..`NRRD0005`).
     #[error("{}: not a NRRD file or unsupported version: magic {found:?}", path.display())]
     BadMagic { path: PathBuf, found: String },
@@ -140,7 +150,10 @@ impl FormatError {
             | FormatError::Geometry { path, .. }
             | FormatError::Sidecar { path, .. }
             | FormatError::Series { path, .. }
-            | FormatError::UnknownFormat { path, .. } => path,
+            | FormatError::UnknownFormat { path, .. }
+            | FormatError::OutputIsInput { path, .. }
+            | FormatError::OutputExists { path }
+            | FormatError::BadOutput { path, .. } => path,
         }
     }
 
@@ -157,7 +170,7 @@ impl FormatError {
         }
     }
 
-    pub(crate) fn io(path: &Path, source: std::io::Error) -> Self {
+    pub fn io(path: &Path, source: std::io::Error) -> Self {
         FormatError::Io {
             path: path.to_path_buf(),
             source,

@@ -12,13 +12,114 @@
 //! The kind is checked again on the opened handle, so a path swapped for a special file between
 //! the check and the open is still refused before anything is read (a FIFO swapped in at that
 //! instant can still block the open itself: std has no portable non-blocking open).
+//!
+//! ## The input log
+//! Every file opened or checked here is also recorded in a process-wide log (its path, and on
+//! Unix its device and inode), and readers that list files to read later (series steps, `.pvd`
+//! steps, detached NRRD data files) record those with [`note_input`] when they are opened. The
+//! output writer ([`crate::output`]) refuses any output that is one of these files
+//! ([`input_matching`]): same device and inode (a hard link, a symbolic link), or the same path
+//! after resolution. The log is process-wide rather than passed along because inputs are read
+//! on worker threads and lazily (a time step long after the open), and because one log that
+//! every reader feeds through these functions cannot miss a reader added later. It only
+//! grows; an entry whose file has since been removed or replaced no longer matches.
 
-use std::fs::{File, FileType};
+use std::fs::{File, FileType, Metadata};
 use std::io::{self, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// One input file: the path as resolved when it was read, and its identity.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct InputFile {
+    path: PathBuf,
+    id: Option<(u64, u64)>,
+}
+
+static INPUTS: Mutex<Vec<InputFile>> = Mutex::new(Vec::new());
+
+/// Device and inode (Unix); `None` elsewhere, where only paths are compared.
+fn file_id(meta: &Metadata) -> Option<(u64, u64)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt as _;
+        Some((meta.dev(), meta.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        None
+    }
+}
+
+/// `path` made absolute with symbolic links resolved, as far as it exists (a missing file
+/// keeps its name under its resolved folder).
+pub fn resolved_path(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    match (path.parent(), path.file_name()) {
+        (Some(dir), Some(name)) => {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            std::fs::canonicalize(dir).map_or_else(|_| path.to_path_buf(), |d| d.join(name))
+        }
+        _ => path.to_path_buf(),
+    }
+}
+
+fn record(path: &Path, meta: Option<&Metadata>) {
+    let entry = InputFile {
+        path: resolved_path(path),
+        id: meta.and_then(file_id),
+    };
+    let mut log = INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if !log.contains(&entry) {
+        log.push(entry);
+    }
+}
+
+/// Records `path` as an input that will be read later (a time step, a detached data file), so
+/// that no output replaces it in the meantime.
+pub fn note_input(path: &Path) {
+    record(path, std::fs::metadata(path).ok().as_ref());
+}
+
+/// The recorded input that `output` would overwrite, if any: the same device and inode as an
+/// input that still exists under its recorded path (so a removed input whose inode was reused
+/// does not match), or the same resolved path.
+pub fn input_matching(output: &Path) -> Option<PathBuf> {
+    let out_path = resolved_path(output);
+    let out_id = std::fs::metadata(output).ok().as_ref().and_then(file_id);
+    let log = INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    log.iter()
+        .find(|input| {
+            if input.path == out_path {
+                return true;
+            }
+            match (out_id, input.id) {
+                (Some(o), Some(i)) if o == i => {
+                    std::fs::metadata(&input.path)
+                        .ok()
+                        .as_ref()
+                        .and_then(file_id)
+                        == Some(i)
+                }
+                _ => false,
+            }
+        })
+        .map(|input| input.path.clone())
+}
 
 /// What a non-regular file is, for messages (`None` for a regular file).
-fn special_kind(t: FileType) -> Option<&'static str> {
+pub(crate) fn special_kind(t: FileType) -> Option<&'static str> {
     if t.is_file() {
         return None;
     }
@@ -55,15 +156,22 @@ fn check(t: FileType) -> io::Result<()> {
 }
 
 /// Checks that `path` (after following symbolic links) is a regular file, without opening it.
+/// The file is recorded in the input log.
 pub fn check_regular(path: &Path) -> io::Result<()> {
-    check(std::fs::metadata(path)?.file_type())
+    let meta = std::fs::metadata(path)?;
+    check(meta.file_type())?;
+    record(path, Some(&meta));
+    Ok(())
 }
 
 /// Opens `path` for reading if it is a regular file (see the module docs).
+/// The file is recorded in the input log.
 pub fn open_regular(path: &Path) -> io::Result<File> {
-    check_regular(path)?;
+    check(std::fs::metadata(path)?.file_type())?;
     let file = File::open(path)?;
-    check(file.metadata()?.file_type())?;
+    let meta = file.metadata()?;
+    check(meta.file_type())?;
+    record(path, Some(&meta));
     Ok(file)
 }
 
@@ -71,7 +179,7 @@ pub fn open_regular(path: &Path) -> io::Result<File> {
 pub fn read_regular(path: &Path) -> io::Result<Vec<u8>> {
     let mut file = open_regular(path)?;
     // The length is a hint only (the file may change); `read_to_end` grows as bytes arrive.
-    let hint = file.metadata().as_ref().map_or(0, std::fs::Metadata::len);
+    let hint = file.metadata().as_ref().map_or(0, Metadata::len);
     let mut out = Vec::with_capacity(usize::try_from(hint).unwrap_or(0));
     file.read_to_end(&mut out)?;
     Ok(out)
@@ -81,6 +189,32 @@ pub fn read_regular(path: &Path) -> io::Result<Vec<u8>> {
 pub fn read_regular_to_string(path: &Path) -> io::Result<String> {
     String::from_utf8(read_regular(path)?)
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.utf8_error()))
+}
+
+/// Opens a settings file (a viewer session) for reading if it is a regular file, without
+/// recording it in the input log (see [`read_settings_to_string`]).
+pub fn open_settings(path: &Path) -> io::Result<File> {
+    check(std::fs::metadata(path)?.file_type())?;
+    let file = File::open(path)?;
+    check(file.metadata()?.file_type())?;
+    Ok(file)
+}
+
+/// Reads a small settings file (a viewer session) as UTF-8 text: regular files only, at most
+/// `max_bytes`, and *not* recorded in the input log, because saving a session over the
+/// session it was loaded from is what "Save" means (the file is read whole and closed).
+pub fn read_settings_to_string(path: &Path, max_bytes: u64) -> io::Result<String> {
+    let file = open_settings(path)?;
+    let mut out = Vec::new();
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut out)?;
+    if out.len() as u64 > max_bytes {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("is larger than {max_bytes} bytes, too large for a settings file"),
+        ));
+    }
+    String::from_utf8(out).map_err(|e| io::Error::new(io::ErrorKind::InvalidData, e.utf8_error()))
 }
 
 #[cfg(test)]

@@ -15,7 +15,10 @@
 //!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
 //! - [`open`]: picks the reader from the name and contents.
 //! - [`input`]: every reader opens its files through [`input::open_regular`] (regular files
-//!   only: a FIFO, device or directory is refused before it is opened).
+//!   only: a FIFO, device or directory is refused before it is opened), and records it in
+//!   the input log.
+//! - [`output`]: every writer writes through [`output::OutputFile`]: never over an input
+//!   file, an existing file only when allowed, a temporary file renamed when complete.
 //!
 //! The NRRD header parser has a `cargo fuzz` target in `formats/fuzz` (see `formats/README.md`);
 //! its seed corpus replays in the tests.
@@ -28,6 +31,7 @@ pub mod error;
 pub mod input;
 pub mod mesh;
 pub mod nrrd;
+pub mod output;
 pub mod raw;
 pub mod series;
 pub mod treelet;
@@ -158,6 +162,7 @@ impl FirstStep {
 mod tests {
     use super::*;
     use crate::nrrd::{NrrdEncoding, write_nrrd};
+    use crate::output::Replace;
     use volume_core::Grid;
 
     #[test]
@@ -166,7 +171,7 @@ mod tests {
         let g = Grid::uniform([2, 2, 2], [0.0; 3], [1.0; 3]).unwrap();
         let v = RectilinearVolume::new(g, (0u8..8).collect::<Vec<_>>().into()).unwrap();
         let p = dir.path().join("a.nrrd");
-        write_nrrd(&p, &v, NrrdEncoding::Raw).unwrap();
+        write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap();
         assert_eq!(
             open(&p, &OpenOptions::default())
                 .unwrap()

@@ -35,6 +35,8 @@ impl FileSeries {
     /// name); step 0 is loaded now.
     pub fn open(pattern: &Path, options: &OpenOptions) -> Result<Self, FormatError> {
         let files = expand_pattern(pattern)?;
+        // Later steps load lazily; no output may replace them meanwhile.
+        files.iter().for_each(|f| crate::input::note_input(f));
         let first = load_file(&files[0], options)?;
         Ok(Self {
             pattern: pattern.to_path_buf(),
@@ -259,7 +261,13 @@ mod tests {
     fn write_step(dir: &Path, name: &str, value: u8) {
         let g = Grid::uniform([2, 2, 2], [0.0; 3], [1.0; 3]).unwrap();
         let v = RectilinearVolume::new(g, vec![value; 8].into()).unwrap();
-        write_nrrd(&dir.join(name), &v, NrrdEncoding::Raw).unwrap();
+        write_nrrd(
+            &dir.join(name),
+            &v,
+            NrrdEncoding::Raw,
+            crate::output::Replace::Refuse,
+        )
+        .unwrap();
     }
 
     #[test]

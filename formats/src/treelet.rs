@@ -17,7 +17,6 @@
 //! header, its CRC and the file length at open, and each page's CRC when a treelet on it is
 //! fetched ([`IsotFile::verify`] checks them all).
 
-use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -29,9 +28,10 @@ use volume_core::ooc::{
     build_treelets,
 };
 use volume_core::volume::{AxisCoords, Grid};
-use volume_core::{RectilinearVolume, Voxel, VoxelData, VoxelType};
+use volume_core::{RectilinearVolume, Voxel, VoxelType};
 
 use crate::FormatError;
+use crate::output::Replace;
 
 /// File magic: "ISOT", then bytes that break text-mode transfers (as PNG does).
 pub const MAGIC: [u8; 8] = *b"ISOT\r\n\x1a\n";
@@ -515,7 +515,7 @@ impl TreeletStorage for IsotFile {
 
 /// The sink that writes pages sequentially per level, with their CRCs.
 struct PageWriter {
-    file: BufWriter<File>,
+    file: BufWriter<crate::output::OutputFile>,
     data_offset: u64,
     plans: Vec<LevelPlan>,
     crcs: Vec<u32>,
@@ -615,35 +615,21 @@ impl TreeletSink for PageWriter {
     }
 }
 
-/// Builds the treelets of `voxels` on `grid` and writes them to `path` (via a temporary
-/// file in the same directory, renamed when complete). `progress(done, total)` counts
+/// Builds the treelets of `voxels` on `grid` and writes them to `path` through
+/// [`crate::output::OutputFile`] (a temporary file renamed when complete; never over an
+/// input; an existing file only with [`Replace::Allow`]). `progress(done, total)` counts
 /// treelets.
 pub fn write_isot<T: Voxel>(
     path: &Path,
     grid: &Grid,
     voxels: &[T],
     layout: TreeletLayout,
+    replace: Replace,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<BuildReport, FormatError> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".isot-").suffix(".tmp");
-    // tempfile creates 0600 files; the finished file gets the mode of any new file
-    // (0666 minus the umask, as `File::create`), applied by the kernel at creation.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt as _;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
-    }
-    let tmp = builder
-        .tempfile_in(dir)
-        .map_err(|e| FormatError::io(path, e))?;
-    let file = tmp.reopen().map_err(|e| FormatError::io(path, e))?;
+    let out = crate::output::OutputFile::create(path, replace)?;
     let mut w = PageWriter {
-        file: BufWriter::with_capacity(1 << 20, file),
+        file: BufWriter::with_capacity(1 << 20, out),
         data_offset: 0,
         plans: Vec::new(),
         crcs: Vec::new(),
@@ -684,13 +670,17 @@ pub fn write_isot<T: Voxel>(
         w.file.seek(SeekFrom::Start(0))?;
         w.file.write_all(&header)?;
         w.file.flush()?;
-        w.file.get_ref().set_len(crc_offset + table.len() as u64)?;
-        w.file.get_ref().sync_all()
+        w.file
+            .get_ref()
+            .file()
+            .set_len(crc_offset + table.len() as u64)
     })();
     finish.map_err(|e| FormatError::io(path, e))?;
-    drop(w);
-    tmp.persist(path)
-        .map_err(|e| FormatError::io(path, e.error))?;
+    let out = w
+        .file
+        .into_inner()
+        .map_err(|e| FormatError::io(path, e.into_error()))?;
+    out.commit()?;
     Ok(report)
 }
 
@@ -699,19 +689,11 @@ pub fn write_isot_volume(
     path: &Path,
     volume: &RectilinearVolume,
     layout: TreeletLayout,
+    replace: Replace,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<BuildReport, FormatError> {
     let g = &volume.grid;
-    match &volume.data {
-        VoxelData::U8(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::I8(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::U16(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::I16(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::U32(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::I32(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::F32(b) => write_isot(path, g, b.as_slice(), layout, progress),
-        VoxelData::F64(b) => write_isot(path, g, b.as_slice(), layout, progress),
-    }
+    volume_core::dispatch_voxels!(&volume.data, b => write_isot(path, g, b.as_slice(), layout, replace, progress))
 }
 
 /// Opens `path` as an out-of-core volume: the loader thread starts with the top treelet.
@@ -750,8 +732,16 @@ mod tests {
         let dims = [37, 21, 15];
         let (grid, v) = volume(dims);
         let layout = TreeletLayout::new(dims.map(|d| d as u64), h).unwrap();
-        let path = dir.join("v.isot");
-        let report = write_isot(&path, &grid, &v, layout.clone(), &mut |_, _| {}).unwrap();
+        let path = dir.join(format!("v{h}.isot"));
+        let report = write_isot(
+            &path,
+            &grid,
+            &v,
+            layout.clone(),
+            Replace::Refuse,
+            &mut |_, _| {},
+        )
+        .unwrap();
         assert_eq!(report.treelets, layout.treelet_count());
         let mut mem = MemoryStorage::new();
         build_treelets(&grid, &v, layout, &mut mem, &mut |_, _| {}).unwrap();
@@ -780,9 +770,9 @@ mod tests {
                 }
             }
             assert!(h == 9 || slots_shared, "small treelets share pages");
-            // No temporary files left behind.
+            // No temporary files left behind: one finished file per height so far.
             let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
-            assert_eq!(names.len(), 1);
+            assert_eq!(names.len(), if h == 3 { 1 } else { 2 });
         }
     }
 
@@ -872,7 +862,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("e.isot");
         let layout = TreeletLayout::new([5, 4, 3], 2).unwrap();
-        write_isot(&path, &grid, &v, layout, &mut |_, _| {}).unwrap();
+        write_isot(&path, &grid, &v, layout, Replace::Refuse, &mut |_, _| {}).unwrap();
         let f = IsotFile::open(&path).unwrap();
         assert_eq!(f.meta().grid, grid);
         assert_eq!(f.meta().voxel_type, VoxelType::F32);
@@ -902,7 +892,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("r.isot");
         let layout = TreeletLayout::new(dims.map(|d| d as u64), 4).unwrap();
-        write_isot(&path, &grid, &v, layout, &mut |_, _| {}).unwrap();
+        write_isot(&path, &grid, &v, layout, Replace::Refuse, &mut |_, _| {}).unwrap();
         let ooc = open_isot(&path, volume_core::ooc::OocOptions::default()).unwrap();
         let iso = [612.5f32];
         ooc.set_isovalues(&iso);
@@ -933,7 +923,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let (path, _) = write(dir.path(), 3);
         let reference = dir.path().join("reference");
-        File::create(&reference).unwrap();
+        std::fs::File::create(&reference).unwrap();
         let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode(&path), mode(&reference));
         assert_ne!(

@@ -338,14 +338,14 @@ fn writers_round_trip() {
     let m = TetMesh::new(points, src.tets.clone(), fields).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("a.vtu");
-    mesh::write_vtu(&a, &m).unwrap();
+    mesh::write_vtu(&a, &m, formats::output::Replace::Refuse).unwrap();
     assert_eq!(mesh::read_mesh(&a).unwrap().mesh, m);
     for (name, enc) in [
         ("b.vtk", mesh::LegacyEncoding::Ascii),
         ("c.vtk", mesh::LegacyEncoding::Binary),
     ] {
         let p = dir.path().join(name);
-        mesh::write_vtk_legacy(&p, &m, enc).unwrap();
+        mesh::write_vtk_legacy(&p, &m, enc, formats::output::Replace::Refuse).unwrap();
         let back = mesh::read_mesh(&p).unwrap();
         assert_eq!(back.mesh, m, "{name}");
         assert_eq!(back.skipped.total(), 0);

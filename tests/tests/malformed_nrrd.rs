@@ -79,7 +79,13 @@ fn gzip_stream(n: usize) -> Vec<u8> {
     let p = dir.path().join("g.nrrd");
     let g = Grid::uniform([n, 1, 1], [0.0; 3], [1.0; 3]).unwrap();
     let v = RectilinearVolume::new(g, (0..n).map(|i| i as u8).collect::<Vec<_>>().into()).unwrap();
-    formats::nrrd::write_nrrd(&p, &v, formats::nrrd::NrrdEncoding::Gzip).unwrap();
+    formats::nrrd::write_nrrd(
+        &p,
+        &v,
+        formats::nrrd::NrrdEncoding::Gzip,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
     let bytes = std::fs::read(&p).unwrap();
     let end = bytes.windows(2).position(|w| w == b"\n\n").unwrap() + 2;
     bytes[end..].to_vec()

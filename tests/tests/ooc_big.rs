@@ -134,6 +134,8 @@ fn more_than_two_to_the_32_voxels_preprocess_and_render_at_the_right_positions()
         treelet_height: 9,
         levels: isoscope::cli::preprocess::Levels::Auto,
         open: isoscope::cli::open_args::OpenArgs::default(),
+        // A rerun in the same scratch folder rebuilds the file.
+        force: true,
     })
     .unwrap();
     let pre_secs = t.elapsed().as_secs_f64();

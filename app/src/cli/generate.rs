@@ -21,6 +21,7 @@ use anyhow::{Context as _, bail};
 use data_samples::Generator;
 use data_samples::tets::TetShape;
 use formats::nrrd::{NrrdEncoding, write_nrrd};
+use formats::output::Replace;
 use volume_core::tet::{PointField, TetMesh};
 use volume_core::{RectilinearVolume, VoxelType};
 
@@ -92,7 +93,7 @@ pub struct Args {
     /// Mesh series: FILE.vtu writes FILE_000.vtu, ... and FILE.pvd.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
-    /// Overwrite existing output files.
+    /// Replace existing output files (never an input file).
     #[arg(long)]
     pub force: bool,
 }
@@ -282,13 +283,9 @@ pub fn generate_mesh(args: &Args, shape: TetShape) -> anyhow::Result<GeneratedMe
     if steps.is_some() {
         all.push(open_path.clone());
     }
-    if !args.force
-        && let Some(existing) = all.iter().find(|f| f.exists())
-    {
-        bail!(
-            "{} exists; pass --force to overwrite it",
-            existing.display()
-        );
+    let replace = Replace::from_force(args.force);
+    for f in &all {
+        formats::output::check_output(f, replace)?;
     }
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty())
         && !dir.is_dir()
@@ -302,9 +299,14 @@ pub fn generate_mesh(args: &Args, shape: TetShape) -> anyhow::Result<GeneratedMe
     };
     let write = |path: &Path, m: &TetMesh| -> anyhow::Result<()> {
         if legacy {
-            formats::mesh::write_vtk_legacy(path, m, formats::mesh::LegacyEncoding::Binary)?;
+            formats::mesh::write_vtk_legacy(
+                path,
+                m,
+                formats::mesh::LegacyEncoding::Binary,
+                replace,
+            )?;
         } else {
-            formats::mesh::write_vtu(path, m)?;
+            formats::mesh::write_vtu(path, m, replace)?;
         }
         Ok(())
     };
@@ -326,7 +328,7 @@ pub fn generate_mesh(args: &Args, shape: TetShape) -> anyhow::Result<GeneratedMe
                 progress.inc(1);
             }
             progress.finish();
-            write_pvd(&open_path, &files)?;
+            write_pvd(&open_path, &files, replace)?;
         }
     }
     Ok(GeneratedMesh {
@@ -339,7 +341,7 @@ pub fn generate_mesh(args: &Args, shape: TetShape) -> anyhow::Result<GeneratedMe
 }
 
 /// A ParaView collection listing `files` (relative to the `.pvd`'s folder), time = index.
-fn write_pvd(path: &Path, files: &[PathBuf]) -> anyhow::Result<()> {
+fn write_pvd(path: &Path, files: &[PathBuf], replace: Replace) -> anyhow::Result<()> {
     use std::fmt::Write as _;
     let mut xml = String::from(
         "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n",
@@ -359,7 +361,7 @@ fn write_pvd(path: &Path, files: &[PathBuf]) -> anyhow::Result<()> {
         );
     }
     xml.push_str("  </Collection>\n</VTKFile>\n");
-    std::fs::write(path, xml).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::save_text(path, &xml, replace)
 }
 
 /// Generates and writes a volume; returns what was written.
@@ -391,13 +393,9 @@ pub fn generate(args: &Args) -> anyhow::Result<Generated> {
     for f in &files {
         check_output_name(f)?;
     }
-    if !args.force
-        && let Some(existing) = files.iter().find(|f| f.exists())
-    {
-        bail!(
-            "{} exists; pass --force to overwrite it",
-            existing.display()
-        );
+    let replace = Replace::from_force(args.force);
+    for f in &files {
+        formats::output::check_output(f, replace)?;
     }
     if g.is_series() {
         // A leftover step after the last one would silently join the series when read back.
@@ -426,7 +424,7 @@ pub fn generate(args: &Args) -> anyhow::Result<Generated> {
                 )
             })?;
         progress.set_message(format!("writing {}", file.display()));
-        write_nrrd(file, &volume, args.encoding.into())?;
+        write_nrrd(file, &volume, args.encoding.into(), replace)?;
         progress.set_message(format!("generating {g}"));
     }
     progress.finish();

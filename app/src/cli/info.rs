@@ -101,12 +101,13 @@ impl Steps<'_> {
         }
     }
 
-    fn get(&self, step: usize) -> anyhow::Result<RectilinearVolume> {
+    /// Step `step`; an error names the series (`path`) as well as the step's own file.
+    fn get(&self, step: usize, path: &Path) -> anyhow::Result<RectilinearVolume> {
         match self {
             Steps::One(v) => Ok((*v).clone()),
             Steps::Series(s) => s
                 .step(step)
-                .with_context(|| format!("loading time step {step}")),
+                .with_context(|| format!("{}: loading time step {step}", path.display())),
         }
     }
 }
@@ -143,7 +144,11 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
     {
         let progress = Progress::bar(n as u64, "value range");
         for s in 0..n {
-            let v = if s == 0 { first.clone() } else { steps.get(s)? };
+            let v = if s == 0 {
+                first.clone()
+            } else {
+                steps.get(s, path)?
+            };
             let st = v.value_stats();
             stats = Some(stats.map_or(st, |acc| merge(acc, st)));
             progress.inc(1);
@@ -158,7 +163,11 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
             let progress = Progress::bar(n as u64, "histogram");
             let mut counts = vec![0u64; HISTOGRAM_BINS];
             for s in 0..n {
-                let v = if s == 0 { first.clone() } else { steps.get(s)? };
+                let v = if s == 0 {
+                    first.clone()
+                } else {
+                    steps.get(s, path)?
+                };
                 let h = volume_core::dispatch_voxels!(&v.data, b =>
                     Histogram::compute(b.as_slice(), lo, hi, HISTOGRAM_BINS));
                 counts.iter_mut().zip(&h.counts).for_each(|(c, x)| *c += x);
@@ -711,7 +720,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("ball.vtu");
         let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, 6).unwrap();
-        formats::mesh::write_vtu(&p, &mesh).unwrap();
+        formats::mesh::write_vtu(&p, &mesh, formats::output::Replace::Refuse).unwrap();
         let r = gather_mesh(&p).unwrap();
         assert_eq!(r.tets, mesh.num_tets());
         assert_eq!(r.points, mesh.num_points());

@@ -8,7 +8,6 @@
 //! row-major (C order), row 0 first.
 
 use std::io::{Read, Write};
-use std::path::Path;
 
 use anyhow::{Context as _, bail, ensure};
 
@@ -43,14 +42,6 @@ pub fn write_f32_2d(
     }
     w.write_all(&bytes)?;
     w.flush()
-}
-
-/// Writes `data` (`rows × cols`, row 0 first) to the file `path`.
-pub fn save_f32_2d(path: &Path, rows: usize, cols: usize, data: &[f32]) -> anyhow::Result<()> {
-    let file =
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    write_f32_2d(std::io::BufWriter::new(file), rows, cols, data)
-        .with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// Reads a version 1.0 `.npy` holding a 2D little-endian float32 C-order array:

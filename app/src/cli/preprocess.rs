@@ -7,10 +7,11 @@
 //! larger than RAM. A progress bar counts MB read over the two passes with the current
 //! throughput; the summary reports input throughput and the peak anonymous memory.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context as _, bail};
+use anyhow::Context as _;
+use formats::output::Replace;
 use volume_core::ooc::TreeletLayout;
 
 use super::open_args::OpenArgs;
@@ -24,6 +25,9 @@ pub struct Args {
     /// Output treelet file (.isot).
     #[arg(short, long, value_name = "OUT.isot")]
     pub output: PathBuf,
+    /// Replace an existing output file (never an input file).
+    #[arg(long)]
+    pub force: bool,
     /// Node levels per treelet (the thesis found 9 best).
     #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u32).range(1..=24))]
     pub treelet_height: u32,
@@ -55,23 +59,13 @@ pub fn parse_levels(s: &str) -> Result<Levels, String> {
     }
 }
 
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
-    }
-}
-
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    if same_file(&args.input, &args.output) {
-        bail!(
-            "{}: output would overwrite the input; choose another -o",
-            args.output.display()
-        );
-    }
+    let replace = Replace::from_force(args.force);
     let options = args.open.open_options()?;
     let dataset = formats::open(&args.input, &options)
         .with_context(|| format!("opening {}", args.input.display()))?;
+    // After the open, which recorded every file the input reads: fail before the long build.
+    formats::output::check_output(&args.output, replace)?;
     if dataset.time_steps() > 1 {
         eprintln!(
             "note: {} has {} time steps; preprocessing the first",
@@ -95,14 +89,19 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let bar = Progress::bar(2 * input_bytes.div_ceil(1 << 20), "preprocess");
     let start = Instant::now();
     let mut meter = Meter::new(start);
-    let report =
-        formats::treelet::write_isot_volume(&args.output, volume, layout, &mut |done, total| {
+    let report = formats::treelet::write_isot_volume(
+        &args.output,
+        volume,
+        layout,
+        replace,
+        &mut |done, total| {
             let mb = (done * voxel_bytes) >> 20;
             bar.inc(mb.saturating_sub(bar.position()));
             if let Some(msg) = meter.tick(done * voxel_bytes, total * voxel_bytes / 2) {
                 bar.set_message(msg);
             }
-        })?;
+        },
+    )?;
     bar.finish();
     meter.sample_memory();
     let secs = start.elapsed().as_secs_f64().max(1e-9);
@@ -195,7 +194,13 @@ mod tests {
         let g = Grid::uniform([9, 8, 7], [0.0; 3], [1.0; 3]).unwrap();
         let voxels: Vec<u8> = (0..9 * 8 * 7).map(|i| (i * 7 % 256) as u8).collect();
         let v = RectilinearVolume::new(g, voxels.into()).unwrap();
-        formats::nrrd::write_nrrd(&input, &v, formats::nrrd::NrrdEncoding::Raw).unwrap();
+        formats::nrrd::write_nrrd(
+            &input,
+            &v,
+            formats::nrrd::NrrdEncoding::Raw,
+            Replace::Refuse,
+        )
+        .unwrap();
         let before = std::fs::read(&input).unwrap();
         let output = dir.path().join("out.isot");
         let args = Args {
@@ -204,20 +209,36 @@ mod tests {
             treelet_height: 3,
             levels: Levels::Auto,
             open: OpenArgs::default(),
+            force: false,
         };
         run(&args).unwrap();
+        assert_eq!(std::fs::read(&input).unwrap(), before);
+        // An existing output is replaced only with --force (checked before this process
+        // opens the output: a file it has read is an input from then on).
+        let e = run(&Args {
+            levels: Levels::Count(2),
+            ..args
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("already exists") && e.contains("--force"), "{e}");
+        let forced = |output: &std::path::Path, levels| Args {
+            input: input.clone(),
+            output: output.to_path_buf(),
+            treelet_height: 3,
+            levels,
+            open: OpenArgs::default(),
+            force: true,
+        };
+        run(&forced(&output, Levels::Count(2))).unwrap();
         let f = formats::treelet::IsotFile::open(&output).unwrap();
         f.verify().unwrap();
-        assert_eq!(std::fs::read(&input).unwrap(), before);
-        let same = Args {
-            input: input.clone(),
-            output: input.clone(),
-            treelet_height: 3,
-            levels: Levels::Count(2),
-            open: OpenArgs::default(),
-        };
-        let e = run(&same).unwrap_err().to_string();
-        assert!(e.contains("overwrite the input"), "{e}");
+        assert_eq!(f.plans().len(), 2);
+        // Neither the input nor a file this process has read is ever an output.
+        for target in [&input, &output] {
+            let e = run(&forced(target, Levels::Auto)).unwrap_err().to_string();
+            assert!(e.contains("is the input file"), "{e}");
+        }
         assert_eq!(std::fs::read(&input).unwrap(), before);
     }
 }

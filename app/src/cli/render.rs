@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
 use anyhow::{Context as _, bail};
+use formats::output::Replace;
 use glam::Vec3;
 use volume_core::grid::AnyGridScene;
 use volume_core::intersect::Intersector;
@@ -86,7 +87,7 @@ impl ViewArgs {
 
 /// Reads and validates a camera JSON file (unknown fields are ignored).
 pub fn load_camera(path: &Path) -> anyhow::Result<Camera> {
-    let text = std::fs::read_to_string(path)
+    let text = formats::input::read_regular_to_string(path)
         .with_context(|| format!("cannot read camera file {}", path.display()))?;
     let camera: Camera = serde_json::from_str(&text)
         .with_context(|| format!("camera file {}: not a valid camera", path.display()))?;
@@ -144,6 +145,9 @@ pub struct Args {
     /// top, inf where the ray hits nothing.
     #[arg(long, value_name = "depth.npy")]
     pub depth_out: Option<PathBuf>,
+    /// Replace existing output files (never an input file).
+    #[arg(long)]
+    pub force: bool,
     /// Print traversal statistics (nodes, leaves and intersections per ray; ray-box and
     /// isopolygon tests for meshes).
     #[arg(long)]
@@ -206,30 +210,22 @@ pub fn render_grid(
     }
 }
 
-/// Errors if `output` names the same existing file as `input` (never overwrite the data).
-pub fn refuse_overwriting_input(input: &Path, output: &Path) -> anyhow::Result<()> {
-    if let (Ok(a), Ok(b)) = (input.canonicalize(), output.canonicalize())
-        && a == b
-    {
-        bail!(
-            "output {} is the input file; choose another name",
-            output.display()
-        );
-    }
-    Ok(())
+/// Writes `frame` as an RGBA PNG ([`crate::output`]).
+pub fn save_png(frame: &Frame, path: &Path, replace: Replace) -> anyhow::Result<()> {
+    crate::output::save_rgba_png(path, &frame.rgba8, frame.width, frame.height, replace)
 }
 
-/// Writes `frame` as an RGBA PNG.
-pub fn save_png(frame: &Frame, path: &Path) -> anyhow::Result<()> {
-    image::save_buffer_with_format(
-        path,
-        &frame.rgba8,
-        frame.width,
-        frame.height,
-        image::ExtendedColorType::Rgba8,
-        image::ImageFormat::Png,
-    )
-    .with_context(|| format!("cannot write {}", path.display()))
+/// `bytes` written to a temporary [`formats::output::OutputFile`] for `path`, to commit.
+fn staged(
+    path: &Path,
+    replace: Replace,
+    bytes: &[u8],
+) -> anyhow::Result<formats::output::OutputFile> {
+    use std::io::Write as _;
+    let mut out = formats::output::OutputFile::create(path, replace)?;
+    out.write_all(bytes)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(out)
 }
 
 /// Builds the settings of `isoscope render` (validated).
@@ -376,10 +372,10 @@ pub fn open_with_flags(
 }
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
-    refuse_overwriting_input(&args.file, &args.output)?;
-    if let Some(d) = &args.depth_out {
-        refuse_overwriting_input(&args.file, d)?;
-    }
+    let replace = Replace::from_force(args.force);
+    let mut outputs = vec![args.output.as_path()];
+    outputs.extend(args.depth_out.as_deref());
+    formats::output::check_distinct(&outputs)?;
     let level_timeout = args.ooc.level_timeout()?;
     let scene = open_with_flags(
         &args.file,
@@ -389,18 +385,36 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         args.step,
         args.intersector,
     )?;
+    // Now that the opener has recorded every file the input reads, refuse outputs that are
+    // one of them (or exist, without --force) before spending time on the render.
+    for out in &outputs {
+        formats::output::check_output(out, replace)?;
+    }
     let surfaces = surfaces_for(&args.iso, &scene)?;
     let camera = args.view.camera(&scene.world_bounds())?;
     let settings = settings_from(args, &camera, surfaces)?;
     let Rendered { frame, ooc_level } = render_scene(&scene, &camera, &settings, level_timeout)?;
-    save_png(&frame, &args.output)?;
+    // Both outputs are complete before either is renamed into place: a failed depth map
+    // leaves no image either.
+    let png = crate::output::png_bytes(
+        &frame.rgba8,
+        frame.width,
+        frame.height,
+        image::ExtendedColorType::Rgba8,
+    )?;
+    let mut written = vec![staged(&args.output, replace, &png)?];
     if let Some(path) = &args.depth_out {
-        npy::save_f32_2d(
-            path,
+        let mut npy_bytes = Vec::new();
+        npy::write_f32_2d(
+            &mut npy_bytes,
             frame.height as usize,
             frame.width as usize,
             &frame.depth,
         )?;
+        written.push(staged(path, replace, &npy_bytes)?);
+    }
+    for out in written {
+        out.commit()?;
     }
     let secs = frame.elapsed.as_secs_f64();
     let structure = match &scene {

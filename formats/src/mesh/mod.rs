@@ -118,6 +118,9 @@ pub enum MeshError {
         chain: Vec<PathBuf>,
         reason: String,
     },
+    /// A mesh output that could not be created or completed ([`crate::output`]).
+    #[error(transparent)]
+    Output(#[from] crate::FormatError),
 }
 
 fn show_chain(chain: &[PathBuf]) -> String {
@@ -146,6 +149,7 @@ impl MeshError {
             | MeshError::Topology { path, .. }
             | MeshError::UnknownFormat { path, .. }
             | MeshError::Cycle { path, .. } => path,
+            MeshError::Output(e) => e.path(),
         }
     }
 

@@ -31,6 +31,11 @@ pub struct MeshSeries {
     pub steps: Vec<MeshStep>,
 }
 
+/// Steps load lazily; no output may replace them meanwhile ([`crate::input::note_input`]).
+fn note_steps(steps: &[MeshStep]) {
+    steps.iter().for_each(|s| crate::input::note_input(&s.path));
+}
+
 /// What one step adds to the reference mesh (the first step).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepData {
@@ -53,7 +58,7 @@ impl MeshSeries {
     /// A series of the given files, time = step index.
     pub fn from_files(paths: Vec<PathBuf>) -> Self {
         let source = paths.first().cloned().unwrap_or_default();
-        let steps = paths
+        let steps: Vec<MeshStep> = paths
             .into_iter()
             .enumerate()
             .map(|(i, path)| MeshStep {
@@ -61,6 +66,7 @@ impl MeshSeries {
                 path,
             })
             .collect();
+        note_steps(&steps);
         Self { source, steps }
     }
 
@@ -103,15 +109,17 @@ impl MeshSeries {
             }
         }
         found.sort();
+        let steps: Vec<MeshStep> = found
+            .into_iter()
+            .map(|(k, path)| MeshStep {
+                time: k as f64,
+                path,
+            })
+            .collect();
+        note_steps(&steps);
         Ok(Self {
             source: example.to_path_buf(),
-            steps: found
-                .into_iter()
-                .map(|(k, path)| MeshStep {
-                    time: k as f64,
-                    path,
-                })
-                .collect(),
+            steps,
         })
     }
 
@@ -256,6 +264,7 @@ pub fn read_pvd(path: &Path) -> Result<MeshSeries, MeshError> {
         return Err(perr(0, "the collection lists no data sets".into()));
     }
     steps.sort_by(|a, b| a.time.total_cmp(&b.time));
+    note_steps(&steps);
     Ok(MeshSeries {
         source: path.to_path_buf(),
         steps,

@@ -657,17 +657,17 @@ pub enum LegacyEncoding {
 }
 
 /// Writes `mesh` as a legacy VTK 4.2 unstructured grid of tetrahedra with all fields as
-/// `SCALARS` (float). Creates or truncates `path`.
+/// `SCALARS` (float), through [`crate::output::OutputFile`] (never over an input; an existing
+/// file only with [`Replace::Allow`]; a failed write leaves no file).
 pub fn write_vtk_legacy(
     path: &Path,
     mesh: &TetMesh,
     encoding: LegacyEncoding,
+    replace: crate::output::Replace,
 ) -> Result<(), MeshError> {
-    let file = std::fs::File::create(path).map_err(|e| MeshError::io(path, e))?;
-    let mut w = std::io::BufWriter::new(file);
-    write_legacy_to(&mut w, mesh, encoding)
-        .and_then(|()| w.flush())
-        .map_err(|e| MeshError::io(path, e))
+    crate::output::write_output_with(path, replace, |w| {
+        write_legacy_to(w, mesh, encoding).map_err(|e| MeshError::io(path, e))
+    })
 }
 
 fn write_legacy_to(

@@ -708,13 +708,17 @@ fn xml_escape(s: &str) -> String {
 }
 
 /// Writes `mesh` as a `.vtu` (appended raw, little-endian, UInt64 headers, Float32 points and
-/// fields, Int64 connectivity/offsets, UInt8 types). Creates or truncates `path`.
-pub fn write_vtu(path: &Path, mesh: &TetMesh) -> Result<(), MeshError> {
-    let file = std::fs::File::create(path).map_err(|e| MeshError::io(path, e))?;
-    let mut w = std::io::BufWriter::new(file);
-    write_vtu_to(&mut w, mesh)
-        .and_then(|()| w.flush())
-        .map_err(|e| MeshError::io(path, e))
+/// fields, Int64 connectivity/offsets, UInt8 types), through [`crate::output::OutputFile`]
+/// (never over an input; an existing file only with [`Replace::Allow`]; a failed write leaves
+/// no file).
+pub fn write_vtu(
+    path: &Path,
+    mesh: &TetMesh,
+    replace: crate::output::Replace,
+) -> Result<(), MeshError> {
+    crate::output::write_output_with(path, replace, |w| {
+        write_vtu_to(w, mesh).map_err(|e| MeshError::io(path, e))
+    })
 }
 
 fn write_vtu_to(w: &mut impl Write, mesh: &TetMesh) -> std::io::Result<()> {

@@ -8,13 +8,14 @@
 //! write never leaves a half-written file under the final name.
 
 use std::fmt::Write as _;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 
 use glam::DVec3;
 use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
 
 use crate::error::FormatError;
+use crate::output::Replace;
 use crate::raw::Endian;
 
 /// Data encoding of a written NRRD.
@@ -115,45 +116,30 @@ pub(crate) fn header_text(
     Ok(h)
 }
 
-/// Writes `volume` to `path` as an attached NRRD (temp file in the same directory, renamed).
+/// Writes `volume` to `path` as an attached NRRD, through [`crate::output::OutputFile`]
+/// (never over an input; an existing file only with [`Replace::Allow`]).
 pub fn write_nrrd(
     path: &Path,
     volume: &RectilinearVolume,
     encoding: NrrdEncoding,
+    replace: Replace,
 ) -> Result<(), FormatError> {
     let header = header_text(path, volume, encoding)?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
     let io = |e: std::io::Error| FormatError::io(path, e);
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(io)?;
-    {
-        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+    crate::output::write_output_with(path, replace, |w| {
         w.write_all(header.as_bytes()).map_err(io)?;
         let bytes: &[u8] =
             volume_core::dispatch_voxels!(&volume.data, b => bytemuck::cast_slice(b.as_slice()));
         match encoding {
             NrrdEncoding::Raw => w.write_all(bytes).map_err(io)?,
             NrrdEncoding::Gzip => {
-                let mut gz = flate2::write::GzEncoder::new(&mut w, flate2::Compression::new(6));
+                let mut gz = flate2::write::GzEncoder::new(w, flate2::Compression::new(6));
                 gz.write_all(bytes).map_err(io)?;
                 gz.finish().map_err(io)?;
             }
         }
-        w.flush().map_err(io)?;
-    }
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+        Ok(())
+    })
 }
 
 #[cfg(test)]
@@ -186,7 +172,7 @@ mod tests {
             (NrrdEncoding::Gzip, "b.nrrd"),
         ] {
             let p = dir.path().join(name);
-            write_nrrd(&p, &v, enc).unwrap();
+            write_nrrd(&p, &v, enc, Replace::Refuse).unwrap();
             let r = read_volume(&p);
             assert_eq!(r.grid, v.grid);
             assert_eq!(r.data.is_shared(), enc == NrrdEncoding::Raw);
@@ -217,7 +203,7 @@ mod tests {
         });
         let v = sample(Grid::new([3, 3, 2], axes, Some(wfg)).unwrap());
         let p = dir.path().join("o.nrrd");
-        write_nrrd(&p, &v, NrrdEncoding::Raw).unwrap();
+        write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap();
         let r = read_volume(&p);
         let m = r.grid.world_from_grid().expect("oriented");
         for (i, j, k) in [(0, 0, 0), (2, 1, 1), (1, 2, 0)] {
@@ -237,7 +223,7 @@ mod tests {
         let e = AxisCoords::Explicit(vec![0.0, 1.0, 3.0].into());
         let v = sample(Grid::new([2, 3, 2], [u.clone(), e, u], None).unwrap());
         let p = dir.path().join("x.nrrd");
-        let err = write_nrrd(&p, &v, NrrdEncoding::Raw).unwrap_err();
+        let err = write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap_err();
         assert!(
             matches!(&err, FormatError::Unsupported { field, reason, .. } if field == "spacings" && reason.contains("axis 1")),
             "{err}"
