@@ -600,7 +600,7 @@ fn write_tet_series(dir: &std::path::Path) -> (Vec<PathBuf>, Vec<Vec<f32>>) {
                 }
             }
             let path = dir.join(format!("ball_{s:03}.vtu"));
-            formats::mesh::write_vtu(&path, &mesh).unwrap();
+            formats::mesh::write_vtu(&path, &mesh, formats::output::Replace::Refuse).unwrap();
             path
         })
         .collect();
@@ -706,7 +706,14 @@ fn an_isot_file_refines_to_the_finest_level_with_a_visible_indicator() {
     let volume =
         data_samples::marschner_lobb::generate([41, 37, 33], volume_core::VoxelType::U16).unwrap();
     let layout = volume_core::ooc::TreeletLayout::new([41, 37, 33], 3).unwrap();
-    formats::treelet::write_isot_volume(&path, &volume, layout, &mut |_, _| {}).unwrap();
+    formats::treelet::write_isot_volume(
+        &path,
+        &volume,
+        layout,
+        formats::output::Replace::Refuse,
+        &mut |_, _| {},
+    )
+    .unwrap();
 
     let mut h = real_harness(vec![path]);
     step_until(&mut h, "the .isot file", |a| a.data().is_some());
@@ -782,7 +789,7 @@ fn the_point_array_picker_redraws_with_the_chosen_array() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, 8).unwrap();
     let path = dir.path().join("ball.vtu");
-    formats::mesh::write_vtu(&path, &mesh).unwrap();
+    formats::mesh::write_vtu(&path, &mesh, formats::output::Replace::Refuse).unwrap();
     let values_of = |name: &str| {
         mesh.fields
             .iter()
@@ -868,5 +875,85 @@ fn the_point_array_picker_redraws_with_the_chosen_array() {
     assert_eq!(
         ViewerState::load(&session).unwrap().field.as_deref(),
         Some("gaussians")
+    );
+}
+
+/// Waits for the next notification whose text starts with `prefix` after `seen` of them.
+fn wait_note(h: &mut Harness<'_, ViewerApp>, seen: usize, prefix: &str) -> (String, bool) {
+    step_until(h, prefix, |a| {
+        a.notifications()
+            .iter()
+            .skip(seen)
+            .any(|n| n.text.starts_with(prefix))
+    });
+    let n = h
+        .state()
+        .notifications()
+        .iter()
+        .skip(seen)
+        .find(|n| n.text.starts_with(prefix))
+        .unwrap();
+    (n.text.clone(), n.is_error)
+}
+
+#[test]
+fn screenshots_never_replace_an_input_and_replace_files_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ml.nrrd");
+    let volume = data_samples::Generator::MarschnerLobb
+        .generate([24; 3], volume_core::VoxelType::F32)
+        .unwrap();
+    formats::nrrd::write_nrrd(
+        &input,
+        &volume,
+        formats::nrrd::NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let mut h = real_harness(vec![input.clone()]);
+    step_until(&mut h, "the volume", |a| a.data().is_some());
+    settle(&mut h);
+    let shot = |path: &std::path::Path, replace: bool| Command::Screenshot {
+        path: path.to_path_buf(),
+        width: 32,
+        height: 24,
+        replace,
+    };
+    let seen = h.state().notifications().len();
+    h.state_mut().push(shot(&input, true));
+    let (text, is_error) = wait_note(&mut h, seen, "screenshot");
+    assert!(is_error && text.contains("is the input file"), "{text}");
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+
+    let png = dir.path().join("shot.png");
+    let seen = h.state().notifications().len();
+    h.state_mut().push(shot(&png, false));
+    let (text, is_error) = wait_note(&mut h, seen, "screenshot");
+    assert!(!is_error, "{text}");
+    assert_eq!(image::open(&png).unwrap().width(), 32);
+
+    let seen = h.state().notifications().len();
+    h.state_mut().push(shot(&png, false));
+    let (text, is_error) = wait_note(&mut h, seen, "screenshot");
+    assert!(is_error && text.contains("already exists"), "{text}");
+    let seen = h.state().notifications().len();
+    h.state_mut().push(shot(&png, true));
+    let (text, is_error) = wait_note(&mut h, seen, "screenshot");
+    assert!(!is_error, "{text}");
+
+    // A session saved, loaded, and saved again over itself (what "Save" means).
+    let session = dir.path().join("s.json");
+    for _ in 0..2 {
+        let seen = h.state().notifications().len();
+        h.state_mut().push(Command::SaveSession(session.clone()));
+        let (text, is_error) = wait_note(&mut h, seen, "session saved");
+        assert!(!is_error, "{text}");
+        h.state_mut().push(Command::LoadSession(session.clone()));
+        step_until(&mut h, "the session loaded", |a| !a.is_busy());
+    }
+    assert_eq!(
+        ViewerState::load(&session).unwrap().files,
+        vec![input.clone()]
     );
 }

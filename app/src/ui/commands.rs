@@ -46,10 +46,13 @@ pub enum Command {
     LoadSession(PathBuf),
     PickSaveSession,
     PickLoadSession,
+    /// Renders at `width × height` and saves a PNG; an existing file is replaced only when
+    /// `replace` (the window's "Replace an existing file" box).
     Screenshot {
         path: PathBuf,
         width: u32,
         height: u32,
+        replace: bool,
     },
     CancelJobs,
 }
@@ -129,7 +132,8 @@ impl ViewerApp {
                 path,
                 width,
                 height,
-            } => self.start_screenshot(path, width, height),
+                replace,
+            } => self.start_screenshot(path, width, height, replace),
             Command::CancelJobs => {
                 // Dropping a job raises its cancel flag (the open stops at its next
                 // checkpoint); the data on screen stays. A running step or field switch is

@@ -138,7 +138,8 @@ pub fn is_session_file(path: &Path) -> bool {
         return false;
     }
     let mut prefix = Vec::new();
-    let read = std::fs::File::open(path)
+    // Regular files only: a FIFO named `x.json` would block the viewer.
+    let read = formats::input::open_settings(path)
         .and_then(|f| f.take(SESSION_PROBE_BYTES + 1).read_to_end(&mut prefix));
     if read.is_err() {
         return false;

@@ -27,6 +27,9 @@ pub struct Prefs {
     pub log_histogram: bool,
     pub screenshot_size: [u32; 2],
     pub screenshot_path: PathBuf,
+    /// Replace an existing screenshot file (off: an existing file is an error, as without
+    /// `--force` on the command line).
+    pub screenshot_replace: bool,
 }
 
 impl Default for Prefs {
@@ -36,6 +39,7 @@ impl Default for Prefs {
             log_histogram: true,
             screenshot_size: [1920, 1080],
             screenshot_path: PathBuf::from("isoscope-screenshot.png"),
+            screenshot_replace: false,
         }
     }
 }

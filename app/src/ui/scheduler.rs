@@ -12,6 +12,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use egui::TextureOptions;
+use formats::output::Replace;
 
 use super::app::ViewerApp;
 use super::backend::{LoadedData, RenderRequest, RenderedImage, StepSwitch, ValueInfo};
@@ -247,13 +248,12 @@ impl ViewerApp {
         self.jobs.load.start(files, job);
     }
 
-    /// Writes the session (serialized here, written by a job).
+    /// Writes the session (a snapshot of the state, written by a job; the save dialog asked
+    /// before replacing a file).
     pub(super) fn start_session_save(&mut self, path: PathBuf) {
-        let json = self.state.to_json();
+        let state = self.state.clone();
         let job = Job::spawn("saving the session", self.repaint_fn(), move |_| {
-            std::fs::write(&path, json)
-                .map(|()| path.clone())
-                .map_err(|e| format!("{}: {e}", path.display()))
+            state.save(&path).map(|()| path.clone())
         });
         self.jobs.save_session.start((), job);
     }
@@ -325,7 +325,13 @@ impl ViewerApp {
         self.jobs.field.start(name, job);
     }
 
-    pub(super) fn start_screenshot(&mut self, path: PathBuf, width: u32, height: u32) {
+    pub(super) fn start_screenshot(
+        &mut self,
+        path: PathBuf,
+        width: u32,
+        height: u32,
+        replace: bool,
+    ) {
         let Some(mut req) = self.desired_request(1) else {
             self.notify("screenshot: nothing to render yet", true);
             return;
@@ -343,10 +349,17 @@ impl ViewerApp {
             let img = scene
                 .render(&req, control.cancel_flag())?
                 .ok_or_else(|| "cancelled".to_string())?;
-            let buf = image::RgbaImage::from_raw(img.width, img.height, img.rgba8)
-                .ok_or_else(|| "the renderer returned a wrong-sized image".to_string())?;
-            buf.save(&path)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
+            if img.rgba8.len() != img.width as usize * img.height as usize * 4 {
+                return Err("the renderer returned a wrong-sized image".to_string());
+            }
+            crate::output::save_rgba_png(
+                &path,
+                &img.rgba8,
+                img.width,
+                img.height,
+                Replace::from_force(replace),
+            )
+            .map_err(|e| format!("{e:#}"))?;
             Ok(path)
         });
         self.jobs.screenshot.start((), job);

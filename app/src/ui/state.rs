@@ -9,6 +9,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+/// The largest session file read (a session lists files and settings: kilobytes).
+pub const MAX_SESSION_BYTES: u64 = 16 << 20;
+
 /// Version written into session files; bumped when a field changes meaning.
 pub const SESSION_VERSION: u32 = 1;
 
@@ -71,12 +74,17 @@ impl ViewerState {
         Ok(state)
     }
 
+    /// Writes the session through `crate::output` (atomic; an existing file is replaced, as a
+    /// save dialog asked; an input data file never is).
     pub fn save(&self, path: &Path) -> Result<(), String> {
-        std::fs::write(path, self.to_json()).map_err(|e| format!("{}: {e}", path.display()))
+        crate::output::save_text(path, &self.to_json(), formats::output::Replace::Allow)
+            .map_err(|e| format!("{e:#}"))
     }
 
+    /// Reads a session (a regular file of at most [`MAX_SESSION_BYTES`]).
     pub fn load(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = formats::input::read_settings_to_string(path, MAX_SESSION_BYTES)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
         Self::from_json(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 }

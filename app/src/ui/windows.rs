@@ -61,6 +61,10 @@ impl ViewerApp {
                             self.prefs.screenshot_path = PathBuf::from(&path);
                         }
                     });
+                    ui.checkbox(
+                        &mut self.prefs.screenshot_replace,
+                        "Replace an existing file",
+                    );
                     take = ui.button("Save PNG").clicked();
                 });
             if take {
@@ -69,6 +73,7 @@ impl ViewerApp {
                     path: self.prefs.screenshot_path.clone(),
                     width,
                     height,
+                    replace: self.prefs.screenshot_replace,
                 });
                 open = false;
             }
