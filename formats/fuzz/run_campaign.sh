@@ -21,7 +21,8 @@ for t in "$@"; do
     mkdir -p "$w"
     case $t in
         nrrd_header) cp corpus-seed/* "$w"/; len=4096 ;;
-        nrrd_data) cp corpus-seed/* seeds/nrrd_data/* "$w"/; len=4096 ;;
+        # corpus-seed and seeds/nrrd_data share names: prefix the header-only seeds
+        nrrd_data) for f in corpus-seed/*; do cp "$f" "$w/hdr_${f##*/}"; done; cp seeds/nrrd_data/* "$w"/; len=4096 ;;
         vtk_legacy) cp $mesh/*.vtk "$w"/; len=4096 ;;
         vtu) cp $mesh/*.vtu $mesh/series/*.vtu "$w"/; len=4096 ;;
         gmsh) cp $mesh/*.msh "$w"/; len=4096 ;;
