@@ -98,7 +98,12 @@ impl RawLayout {
     pub fn from_sidecar(path: &Path) -> Result<Self, FormatError> {
         let text =
             crate::input::read_regular_to_string(path).map_err(|e| FormatError::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| FormatError::Sidecar {
+        Self::from_sidecar_text(path, &text)
+    }
+
+    /// Parses the text of the JSON sidecar at `path` (`path` only names it in errors).
+    pub fn from_sidecar_text(path: &Path, text: &str) -> Result<Self, FormatError> {
+        serde_json::from_str(text).map_err(|e| FormatError::Sidecar {
             path: path.to_path_buf(),
             reason: e.to_string(),
         })
@@ -161,7 +166,44 @@ pub fn parse_spacing(s: &str) -> Result<[f64; 3], String> {
 
 /// Reads a raw file of the given layout (memory-mapped; zero-copy when native and aligned).
 pub fn read_raw(path: &Path, layout: &RawLayout) -> Result<RectilinearVolume, FormatError> {
-    let grid = Grid::uniform(layout.dims, layout.origin, layout.spacing).map_err(|e| {
+    let grid = raw_grid(path, layout)?;
+    let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
+    check_raw_len(path, layout, file_len)?;
+    let map = map_file(path, &file)?;
+    let data = voxels_from_map(
+        path,
+        &map,
+        layout.header_bytes,
+        grid.voxel_count(),
+        layout.voxel_type,
+        layout.endian,
+    )?;
+    RectilinearVolume::new(grid, data).map_err(|e| FormatError::geometry(path, e))
+}
+
+/// [`read_raw`] on the file's bytes already in memory (`path` only names it in errors): the
+/// same checks, the voxels copied out of `bytes`. For fuzzing and for callers that hold the
+/// bytes.
+pub fn parse_raw(
+    path: &Path,
+    layout: &RawLayout,
+    bytes: &[u8],
+) -> Result<RectilinearVolume, FormatError> {
+    let grid = raw_grid(path, layout)?;
+    check_raw_len(path, layout, bytes.len() as u64)?;
+    // The length check made `header_bytes + data bytes == bytes.len()`: both fit usize.
+    let data = voxels_from_bytes(
+        &bytes[layout.header_bytes as usize..],
+        layout.voxel_type,
+        layout.endian,
+    );
+    RectilinearVolume::new(grid, data).map_err(|e| FormatError::geometry(path, e))
+}
+
+/// The grid of a raw layout; coordinate overflow names the layout field.
+fn raw_grid(path: &Path, layout: &RawLayout) -> Result<Grid, FormatError> {
+    Grid::uniform(layout.dims, layout.origin, layout.spacing).map_err(|e| {
         // Coordinates beyond single-precision rendering: name the layout field (sidecar key
         // and command-line flag alike) that put them there. `Grid::new` checks dims and
         // finiteness first, so a `BadAxis` with an overflow here is that case.
@@ -185,15 +227,17 @@ pub fn read_raw(path: &Path, layout: &RawLayout) -> Result<RectilinearVolume, Fo
             }
             _ => FormatError::geometry(path, e),
         }
-    })?;
+    })
+}
+
+/// Checks that a file of `file_len` bytes holds exactly the layout's header and data.
+fn check_raw_len(path: &Path, layout: &RawLayout, file_len: u64) -> Result<(), FormatError> {
     let data_bytes = layout.data_bytes().ok_or_else(|| FormatError::BadValue {
         path: path.to_path_buf(),
         line: 0,
         field: "dims".into(),
         reason: format!("{:?} voxels overflow", layout.dims),
     })?;
-    let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
-    let file_len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
     let needed = layout.header_bytes.checked_add(data_bytes);
     match needed {
         Some(n) if n == file_len => {}
@@ -213,16 +257,7 @@ pub fn read_raw(path: &Path, layout: &RawLayout) -> Result<RectilinearVolume, Fo
             });
         }
     }
-    let map = map_file(path, &file)?;
-    let data = voxels_from_map(
-        path,
-        &map,
-        layout.header_bytes,
-        grid.voxel_count(),
-        layout.voxel_type,
-        layout.endian,
-    )?;
-    RectilinearVolume::new(grid, data).map_err(|e| FormatError::geometry(path, e))
+    Ok(())
 }
 
 /// Memory-maps a whole file read-only.

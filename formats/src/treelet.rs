@@ -206,10 +206,27 @@ fn bad(path: &Path, field: &str, reason: &str) -> FormatError {
     }
 }
 
+/// The bytes of an `.isot` file: a read-only memory map, or bytes already in memory
+/// ([`IsotFile::from_bytes`]).
+enum IsotBytes {
+    Map(Arc<Mmap>),
+    Owned(Vec<u8>),
+}
+
+impl std::ops::Deref for IsotBytes {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        match self {
+            IsotBytes::Map(m) => m,
+            IsotBytes::Owned(v) => v,
+        }
+    }
+}
+
 /// An open `.isot` file: a [`TreeletStorage`] over a read-only memory map.
 pub struct IsotFile {
     path: PathBuf,
-    map: Arc<Mmap>,
+    map: IsotBytes,
     meta: OocMeta,
     plans: Vec<LevelPlan>,
     data_offset: u64,
@@ -236,6 +253,15 @@ pub fn is_isot(path: &Path) -> bool {
         && m == MAGIC
 }
 
+fn too_short_for_magic(path: &Path, len: u64) -> FormatError {
+    FormatError::TooShort {
+        path: path.to_path_buf(),
+        offset: 0,
+        needed: 24,
+        available: len,
+    }
+}
+
 impl IsotFile {
     /// Opens and checks `path`: magic, version, header CRC, geometry, the level table
     /// against the layout recomputed from dims and height, and the exact file length.
@@ -243,15 +269,25 @@ impl IsotFile {
         let file = crate::input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
         let len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
         if len < 24 {
-            return Err(FormatError::TooShort {
-                path: path.to_path_buf(),
-                offset: 0,
-                needed: 24,
-                available: len,
-            });
+            return Err(too_short_for_magic(path, len));
         }
         let map = crate::raw::map_file(path, &file)?;
+        Self::check(path, IsotBytes::Map(map))
+    }
+
+    /// [`IsotFile::open`] on the file's bytes already in memory (`path` only names it in
+    /// errors): the same checks; treelets are then fetched from `bytes`.
+    pub fn from_bytes(path: &Path, bytes: Vec<u8>) -> Result<Self, FormatError> {
+        if bytes.len() < 24 {
+            return Err(too_short_for_magic(path, bytes.len() as u64));
+        }
+        Self::check(path, IsotBytes::Owned(bytes))
+    }
+
+    /// The checks of [`IsotFile::open`] on the whole file's bytes (at least 24).
+    fn check(path: &Path, map: IsotBytes) -> Result<Self, FormatError> {
         let bytes: &[u8] = &map;
+        let len = bytes.len() as u64;
         if bytes[..8] != MAGIC {
             return Err(FormatError::UnknownFormat {
                 path: path.to_path_buf(),

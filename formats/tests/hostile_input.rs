@@ -315,6 +315,28 @@ fn zlib_vtu_with_overflowing_point_count_is_an_error() {
     assert!(e.to_string().contains("ovf.vtu"), "{e}");
 }
 
+#[test]
+fn zlib_vtu_with_block_count_near_u64_max_is_an_error() {
+    // Found by the `vtu` fuzz target: `3 + nblocks` (the compression header's length in
+    // words) overflowed before it was compared with the block.
+    let mut doc = zlib_vtu(1, 12, &[0u8; 12]);
+    let head: Vec<u8> = [1u64, 12, 12]
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .collect();
+    let huge: Vec<u8> = [u64::MAX, 12, 12]
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .collect();
+    let text = String::from_utf8(doc).unwrap();
+    let (old, new) = (b64(&head), b64(&huge));
+    assert!(text.contains(&old));
+    doc = text.replacen(&old, &new, 1).into_bytes();
+    let e = vtu::parse(Path::new("blocks.vtu"), &doc).unwrap_err();
+    let s = e.to_string();
+    assert!(s.contains("blocks.vtu") && s.contains("blocks"), "{s}");
+}
+
 // --- Signs and ranges of counts ----------------------------------------------------------
 
 #[test]

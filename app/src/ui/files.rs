@@ -15,6 +15,7 @@ use std::collections::BTreeSet;
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
+use super::state::ViewerState;
 use crate::scene::{SceneKind, detect_kind};
 
 /// How a set of files opens.
@@ -124,6 +125,27 @@ pub fn group_files(files: &[PathBuf]) -> FileGroup {
 /// Bytes of a `.json` file [`is_session_file`] reads at most: sessions are a few KiB, and
 /// serde writes `version` and `files` first.
 const SESSION_PROBE_BYTES: u64 = 64 * 1024;
+
+/// The largest session file read (a session lists files and settings: kilobytes).
+pub const MAX_SESSION_BYTES: u64 = 16 << 20;
+
+/// Session files on disk (kept out of `state.rs`, which is plain data).
+impl ViewerState {
+    /// Writes the session through `crate::output` (atomic; an existing file is replaced, as a
+    /// save dialog asked; an input data file never is).
+    pub fn save(&self, path: &Path) -> Result<(), String> {
+        crate::output::save_text(path, &self.to_json(), formats::output::Replace::Allow)
+            .map_err(|e| format!("{e:#}"))
+    }
+
+    /// Reads a session: a regular file of at most [`MAX_SESSION_BYTES`], not recorded as an
+    /// input, so that Save can replace the session it came from.
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = formats::input::read_settings_to_string(path, MAX_SESSION_BYTES)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::from_json(&text).map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
 
 /// A `.json` file holding a viewer session (a `version` and at least one of the session's
 /// sections), not a raw file's layout sidecar. Reads at most the first 64 KiB: a file that

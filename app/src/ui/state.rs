@@ -5,12 +5,9 @@
 //! volumes, scenes, textures live in the viewer, not here), so a session round-trips through
 //! JSON exactly and tests can build states without a window.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
-
-/// The largest session file read (a session lists files and settings: kilobytes).
-pub const MAX_SESSION_BYTES: u64 = 16 << 20;
 
 /// Version written into session files; bumped when a field changes meaning.
 pub const SESSION_VERSION: u32 = 1;
@@ -71,21 +68,58 @@ impl ViewerState {
                 state.version
             ));
         }
+        if let Some(field) = state.non_finite_field() {
+            return Err(format!(
+                "not a session file: {field} is not a finite number"
+            ));
+        }
         Ok(state)
     }
 
-    /// Writes the session through `crate::output` (atomic; an existing file is replaced, as a
-    /// save dialog asked; an input data file never is).
-    pub fn save(&self, path: &Path) -> Result<(), String> {
-        crate::output::save_text(path, &self.to_json(), formats::output::Replace::Allow)
-            .map_err(|e| format!("{e:#}"))
-    }
-
-    /// Reads a session (a regular file of at most [`MAX_SESSION_BYTES`]).
-    pub fn load(path: &Path) -> Result<Self, String> {
-        let text = formats::input::read_settings_to_string(path, MAX_SESSION_BYTES)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        Self::from_json(&text).map_err(|e| format!("{}: {e}", path.display()))
+    /// The first number that is infinite (JSON has no infinity or NaN, but a value beyond
+    /// `f32`, e.g. `1e39`, reads as infinity): saved, it would be written as `null`, and the
+    /// saved session would no longer load.
+    fn non_finite_field(&self) -> Option<&'static str> {
+        let bad32 = |v: &[f32]| v.iter().any(|x| !x.is_finite());
+        let camera = |c: &CameraState| {
+            bad32(&[c.azimuth_deg, c.elevation_deg, c.zoom, c.vfov_deg]) || bad32(&c.pan)
+        };
+        let r = &self.render;
+        [
+            ("camera", camera(&self.camera)),
+            ("bookmarks", self.bookmarks.iter().any(camera)),
+            (
+                "surfaces",
+                self.surfaces
+                    .iter()
+                    .any(|s| !s.isovalue.is_finite() || bad32(&s.color) || !s.opacity.is_finite()),
+            ),
+            (
+                "clip_boxes",
+                self.clip_boxes
+                    .iter()
+                    .any(|b| bad32(&b.min) || bad32(&b.max)),
+            ),
+            (
+                "clip_planes",
+                self.clip_planes
+                    .iter()
+                    .any(|p| bad32(&p.normal) || !p.offset.is_finite()),
+            ),
+            (
+                "render",
+                bad32(&[r.light_azimuth_deg, r.light_elevation_deg]) || bad32(&r.background),
+            ),
+            ("time", !self.time.fps.is_finite()),
+            (
+                "raw_layout",
+                self.raw_layout
+                    .as_ref()
+                    .is_some_and(|l| l.spacing.iter().any(|x| !x.is_finite())),
+            ),
+        ]
+        .into_iter()
+        .find_map(|(name, bad)| bad.then_some(name))
     }
 }
 

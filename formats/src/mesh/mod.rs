@@ -46,7 +46,7 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 use volume_core::tet::{PointField, TetError, TetMesh, split_hex, split_pyramid, split_wedge};
 
-pub use pvd::{MeshSeries, MeshStep, StepData, read_pvd};
+pub use pvd::{MeshSeries, MeshStep, StepData, parse_pvd, read_pvd};
 pub use vtk_legacy::{LegacyEncoding, write_vtk_legacy};
 pub use vtu::write_vtu;
 

@@ -184,6 +184,12 @@ impl MeshSeries {
 /// Reads a ParaView `.pvd` collection (the steps are not loaded yet).
 pub fn read_pvd(path: &Path) -> Result<MeshSeries, MeshError> {
     let data = read_file(path)?;
+    parse_pvd(path, &data)
+}
+
+/// Parses the bytes of the `.pvd` collection at `path` (steps are named relative to its
+/// directory; nothing is read).
+pub fn parse_pvd(path: &Path, data: &[u8]) -> Result<MeshSeries, MeshError> {
     let dir = path.parent().unwrap_or(Path::new(""));
     let perr = |pos: usize, reason: String| MeshError::Parse {
         path: path.to_path_buf(),
@@ -191,7 +197,7 @@ pub fn read_pvd(path: &Path) -> Result<MeshSeries, MeshError> {
         offset: pos as u64,
         reason,
     };
-    let mut reader = quick_xml::Reader::from_reader(&data[..]);
+    let mut reader = quick_xml::Reader::from_reader(data);
     let mut steps: Vec<MeshStep> = Vec::new();
     let mut saw_collection = false;
     loop {

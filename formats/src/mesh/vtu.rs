@@ -623,7 +623,7 @@ impl Ctx<'_> {
                 ));
             }
             if ((block.len() - hs) as u64) < expected {
-                return Err(short("data", expected + hs as u64));
+                return Err(short("data", expected.saturating_add(hs as u64)));
             }
             return Ok(block[hs..hs + expected as usize].to_vec());
         }
@@ -633,7 +633,7 @@ impl Ctx<'_> {
         let nblocks = self.header_word(&block[..hs]);
         let block_size = self.header_word(&block[hs..2 * hs]);
         let last_size = self.header_word(&block[2 * hs..3 * hs]);
-        let head_len = (3 + nblocks).saturating_mul(hs as u64);
+        let head_len = nblocks.saturating_add(3).saturating_mul(hs as u64);
         if head_len > block.len() as u64 {
             return Err(short(
                 &format!("compression header of {nblocks} blocks"),
