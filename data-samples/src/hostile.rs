@@ -605,6 +605,29 @@ fn nrrd_cases(c: &mut Corpus) -> std::io::Result<()> {
             &cat(&[b"junk line\nanother\n", &raw]),
         ),
     )?;
+    // The NRRD format definition: a NaN spacing or axis min is "unknown", not an error (the
+    // reader falls back to unit spacing / the origin).
+    c.valid(
+        r,
+        "nrrd_spacing_nan_unknown",
+        "v.nrrd",
+        attached("uint8", "raw", &["spacings: nan 1 1"], &raw),
+    )?;
+    c.valid(
+        r,
+        "nrrd_axis_mins_nan_unknown",
+        "v.nrrd",
+        attached(
+            "uint8",
+            "raw",
+            &[
+                "spacings: nan nan nan",
+                "axis mins: nan 0 0",
+                "axis maxs: 4 3 2",
+            ],
+            &raw,
+        ),
+    )?;
     let one = cat(&[
         nrrd_header("uint8", "1 1 1", "raw", &[]).as_bytes(),
         b"\n",
@@ -914,7 +937,6 @@ fn nrrd_cases(c: &mut Corpus) -> std::io::Result<()> {
 
     // Geometry.
     let geo: &[(&str, &[&str])] = &[
-        ("spacing_nan", &["spacings: nan 1 1"]),
         ("spacing_inf", &["spacings: inf 1 1"]),
         ("spacing_minus_inf", &["spacings: 1 -inf 1"]),
         ("spacing_zero", &["spacings: 1 0 1"]),
@@ -965,10 +987,10 @@ fn nrrd_cases(c: &mut Corpus) -> std::io::Result<()> {
             ],
         ),
         (
-            "axis_mins_nan",
+            "axis_mins_minus_inf",
             &[
                 "spacings: nan nan nan",
-                "axis mins: nan 0 0",
+                "axis mins: -inf 0 0",
                 "axis maxs: 4 3 2",
             ],
         ),
@@ -1829,10 +1851,10 @@ fn series_cases(c: &mut Corpus) -> std::io::Result<()> {
             Entry::File(attached("uint8", "gzip", &[], b"not gzip")),
         ),
         (
-            "step2_spacing_nan",
+            "step2_spacing_inf",
             Kind::BadGeometry,
             2,
-            Entry::File(attached("uint8", "raw", &["spacings: nan 1 1"], &u8s(&g))),
+            Entry::File(attached("uint8", "raw", &["spacings: inf 1 1"], &u8s(&g))),
         ),
         (
             "step1_devzero",
@@ -2161,7 +2183,7 @@ fn vtk_cases(c: &mut Corpus) -> std::io::Result<()> {
         (
             "cell_type_unknown",
             Kind::OutOfRange,
-            a.replace_first("CELL_TYPES 2\n10\n10", "CELL_TYPES 2\n10\n99999"),
+            a.replace_first("CELL_TYPES 2\n10\n10", "CELL_TYPES 2\n99999\n99999"),
         ),
         (
             "points_nan",
@@ -2595,7 +2617,7 @@ fn vtu_cases(c: &mut Corpus) -> std::io::Result<()> {
             replace_bytes(
                 &a,
                 ">0 0 0 1",
-                format!(">0 {} 0 1", "0".repeat(4 << 20)).as_bytes(),
+                format!(">0 {} 0 1", "x".repeat(4 << 20)).as_bytes(),
             ),
         ),
         ("not_xml", Kind::LyingHeader, b"this is not XML\n".to_vec()),
@@ -3648,8 +3670,37 @@ pub fn write_corpus(dir: &Path) -> std::io::Result<Vec<Case>> {
     gmsh_cases(&mut c, true)?;
     tetgen_cases(&mut c)?;
     isot_cases(&mut c)?;
+    for (case, name) in REFERENCED {
+        let c = c
+            .cases
+            .iter_mut()
+            .find(|c| c.name == *case)
+            .unwrap_or_else(|| panic!("no case {case}"));
+        c.names.push(if name.starts_with('/') {
+            (*name).to_string()
+        } else {
+            format!("{case}/{name}")
+        });
+    }
     Ok(c.cases)
 }
+
+/// Files that cases refer to without writing them (missing, outside the corpus, or of a
+/// name no file can have): an error may name these instead of the referring file. A prefix
+/// stands for a name too long to spell here or formatted by the reader.
+const REFERENCED: &[(&str, &str)] = &[
+    ("nhdr_missing_data_file", "gone.raw"),
+    ("nhdr_list_missing_entry", "nope.raw"),
+    ("nhdr_pattern_huge_width", "s"),
+    ("nhdr_data_file_abs_devzero", "/dev/zero"),
+    ("nhdr_data_file_long_name", "ddd"),
+    ("pvd_step0_missing", "gone.vtu"),
+    ("pvd_step1_missing", "gone.vtu"),
+    ("pvd_step_abs_devzero", "/dev/zero"),
+    ("pvd_step_non_utf8", "s_\u{fffd}.vtu"),
+    ("pvd_long_file_name", "sss"),
+    ("tetgen_ele_missing", "t.ele"),
+];
 
 #[cfg(test)]
 mod tests {
