@@ -12,6 +12,8 @@
 //!   into tets) with analytic point fields and a moving Gaussian series.
 //! - [`sparse_blobs`]: a 2048×2048×1100 `u8` volume of analytic blobs as a sparse file
 //!   (more than 2³² voxels, for the out-of-core test).
+//! - [`hostile`]: a corpus of several hundred malformed, hostile and edge-case files over
+//!   every reader, with what each must give (a clean error, or a render).
 //! - [`sampling`]: the parallel field sampler and the [`ValueMap`] that stores a field's
 //!   natural values in any voxel type.
 //!
@@ -21,6 +23,7 @@ use volume_core::{RectilinearVolume, VolumeError, VoxelType};
 
 pub mod analytic;
 pub mod blobs;
+pub mod hostile;
 pub mod marschner_lobb;
 pub mod phantom;
 pub mod sampling;

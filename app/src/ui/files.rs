@@ -176,13 +176,16 @@ pub fn is_session_file(path: &Path) -> bool {
     text.trim_start().starts_with('{') && has_key("version") && SECTIONS.iter().any(|k| has_key(k))
 }
 
-/// A raw file needs its layout from the user unless a `NAME.json` sidecar gives it.
+/// A raw file needs its layout from the user unless a sidecar (`NAME.json` or
+/// `NAME.raw.json`) gives it.
 pub fn needs_raw_dialog(path: &Path) -> bool {
     let is_raw = path
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "raw" | "bin" | "dat"));
-    is_raw && !path.with_extension("json").exists()
+    // The same sidecar lookup as the reader (`NAME.json`, else `NAME.raw.json`): a file that
+    // `isoscope render` opens by its sidecar opens in the viewer without the dialog.
+    is_raw && formats::raw::sidecar_path(path).is_none()
 }
 
 #[cfg(test)]
@@ -241,6 +244,11 @@ mod tests {
         assert!(!needs_raw_dialog(&raw));
         assert!(!needs_raw_dialog(Path::new("a.nrrd")));
         assert!(needs_raw_dialog(Path::new("x/VOL.RAW")));
+        // `NAME.raw.json`, which the reader also takes (the dialog used to open for it).
+        let other = dir.path().join("mr.raw");
+        assert!(needs_raw_dialog(&other));
+        std::fs::write(dir.path().join("mr.raw.json"), "{}").unwrap();
+        assert!(!needs_raw_dialog(&other));
     }
 
     #[test]

@@ -106,6 +106,19 @@ impl Default for Runtime {
     }
 }
 
+/// Longest notification shown, in characters. Errors quote file contents (a section name, a
+/// file name from a header); a multi-megabyte line laid out every frame stalled the viewer
+/// and took gigabytes. The full text still goes to stderr.
+pub const MAX_NOTIFICATION_CHARS: usize = 400;
+
+/// `text` cut to [`MAX_NOTIFICATION_CHARS`] characters, marked with an ellipsis when cut.
+pub fn shorten_notification(text: &str) -> String {
+    match text.char_indices().nth(MAX_NOTIFICATION_CHARS) {
+        None => text.to_owned(),
+        Some((at, _)) => format!("{}… ({} more bytes)", &text[..at], text.len() - at),
+    }
+}
+
 impl Runtime {
     pub fn notify(&mut self, text: impl Into<String>, is_error: bool) {
         let text = text.into();
@@ -113,7 +126,7 @@ impl Runtime {
             eprintln!("isoscope: {text}");
         }
         self.notifications.push(Notification {
-            text,
+            text: shorten_notification(&text),
             is_error,
             created: Instant::now(),
         });
@@ -141,5 +154,27 @@ impl Runtime {
             scale,
             lod_levels,
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_notifications_are_cut_at_a_character_boundary() {
+        let short = "v.nrrd: bad";
+        assert_eq!(shorten_notification(short), short);
+        let long = format!("m.msh: ${}", "é".repeat(1 << 20));
+        let cut = shorten_notification(&long);
+        assert_eq!(
+            cut.chars().filter(|&c| c == 'é').count(),
+            MAX_NOTIFICATION_CHARS - 8
+        );
+        assert!(
+            cut.starts_with("m.msh: $") && cut.ends_with("more bytes)"),
+            "{cut}"
+        );
+        assert!(cut.len() < 2 * MAX_NOTIFICATION_CHARS + 40);
     }
 }

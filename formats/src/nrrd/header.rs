@@ -664,6 +664,19 @@ pub fn parse_header_at(path: &Path, bytes: &[u8]) -> Result<NrrdHeader, FormatEr
             ),
         ));
     }
+    // Teem (`_nrrdFieldCheck_axis_min`/`_max`): an axis min or max may be nan (unknown) but
+    // not infinite; geometry would otherwise drop an infinite one silently as unknown.
+    for (field, vals) in [("axis mins", &axis_mins), ("axis maxs", &axis_maxs)] {
+        if let Some(v) = vals
+            && let Some(i) = v.iter().position(|x| x.is_infinite())
+        {
+            return Err(cx.bad(
+                field_lines[field],
+                field,
+                format!("axis {i}: {} must be finite (or nan)", v[i]),
+            ));
+        }
+    }
     // Teem: an axis with a space direction gets its spacing and min/max from the space
     // directions and origin; per-axis values on such an axis contradict them.
     if let Some(dirs) = &space_directions {
