@@ -3601,7 +3601,14 @@ fn isot_cases(c: &mut Corpus) -> std::io::Result<()> {
         crate::marschner_lobb::generate([9, 9, 9], volume_core::VoxelType::U8).map_err(io_err)?;
     let layout = volume_core::ooc::TreeletLayout::new([9, 9, 9], 2).map_err(io_err)?;
     let tmp = c.root.join("isot_base.tmp.isot");
-    formats::treelet::write_isot_volume(&tmp, &volume, layout, &mut |_, _| {}).map_err(io_err)?;
+    formats::treelet::write_isot_volume(
+        &tmp,
+        &volume,
+        layout,
+        formats::output::Replace::Refuse,
+        &mut |_, _| {},
+    )
+    .map_err(io_err)?;
     let base = std::fs::read(&tmp)?;
     std::fs::remove_file(&tmp)?;
     c.valid(r, "isot_valid", "v.isot", base.clone())?;
