@@ -13,6 +13,7 @@
 //! `cargo test -p isoscope --test cli_hostile_corpus -- --nocapture`.
 
 use std::collections::BTreeMap;
+use std::fmt::Write as _;
 use std::path::Path;
 use std::process::{Command, ExitStatus, Stdio};
 use std::sync::Mutex;
@@ -208,8 +209,9 @@ fn table(results: &BTreeMap<(Reader, Kind), Tally>, cases: usize, wall: Duration
             let Some(t) = results.get(&(r, k)) else {
                 continue;
             };
-            s.push_str(&format!(
-                "| {} | {} | {} | {} | {} | {} | {} ms |\n",
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} ms |",
                 r.name(),
                 k.name(),
                 t.errors + t.renders + t.failures,
@@ -217,22 +219,23 @@ fn table(results: &BTreeMap<(Reader, Kind), Tally>, cases: usize, wall: Duration
                 t.renders,
                 t.failures,
                 t.slowest.as_millis()
-            ));
+            );
             total.errors += t.errors;
             total.renders += t.renders;
             total.failures += t.failures;
             total.slowest = total.slowest.max(t.slowest);
         }
     }
-    s.push_str(&format!(
-        "| **all** | | **{cases}** | **{}** | **{}** | **{}** | {} ms |\n\n{} runs (`info` and `render` per case) in {:.0} s with {WORKERS} workers.\n",
+    let _ = writeln!(
+        s,
+        "| **all** | | **{cases}** | **{}** | **{}** | **{}** | {} ms |\n\n{} runs (`info` and `render` per case) in {:.0} s with {WORKERS} workers.",
         total.errors,
         total.renders,
         total.failures,
         total.slowest.as_millis(),
         2 * cases,
         wall.as_secs_f64()
-    ));
+    );
     s
 }
 

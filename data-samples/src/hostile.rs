@@ -27,9 +27,15 @@
 //! `DIR`). Special files are made as such: FIFOs with the `mkfifo` command, symbolic links to
 //! `/dev/zero`, directories named like volumes (Unix only).
 
+// Cut regions are lists of byte ranges; many formats have one region (`&[0..len]`).
+#![allow(clippy::single_range_in_vec_init)]
+
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+
+/// The files of one case: (name inside the case's folder, what to put there).
+type Files = Vec<(String, Entry)>;
 
 /// The reader a case exercises (the row of the outcome table).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -1222,7 +1228,7 @@ fn nhdr_cases(c: &mut Corpus) -> std::io::Result<()> {
     }
 
     // Lying headers and references.
-    let lies: Vec<(&str, Kind, Vec<(String, Entry)>)> = vec![
+    let lies: Vec<(&str, Kind, Files)> = vec![
         (
             "missing_data_file",
             Kind::SpecialFile,
@@ -1499,7 +1505,7 @@ fn raw_cases(c: &mut Corpus) -> std::io::Result<()> {
     let f = |s: &str, b: Vec<u8>| (s.to_string(), Entry::File(b));
     let pair = |json: Vec<u8>, data: Vec<u8>| vec![f("r.raw", data), f("r.json", json)];
     let be16: Vec<u8> = g.iter().flat_map(|&x| (x as u16).to_be_bytes()).collect();
-    let valid: Vec<(&str, Vec<(String, Entry)>, Vec<String>)> = vec![
+    let valid: Vec<(&str, Files, Vec<String>)> = vec![
         (
             "u8",
             pair(sidecar("[5, 4, 3]", "u8", ""), raw.clone()),
@@ -2741,7 +2747,7 @@ fn pvd_cases(c: &mut Corpus) -> std::io::Result<()> {
             case.bad_step = Some(1);
         }
     }
-    let bad: Vec<(&str, Kind, Vec<(String, Entry)>, Option<usize>)> = vec![
+    let bad: Vec<(&str, Kind, Files, Option<usize>)> = vec![
         (
             "no_datasets",
             Kind::LyingHeader,
@@ -3440,7 +3446,7 @@ fn tetgen_cases(c: &mut Corpus) -> std::io::Result<()> {
             "t.node",
         )?;
     }
-    let bad: Vec<(&str, Kind, Vec<(String, Entry)>)> = vec![
+    let bad: Vec<(&str, Kind, Files)> = vec![
         (
             "node_count_more",
             Kind::LyingHeader,

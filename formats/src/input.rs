@@ -39,6 +39,8 @@ struct InputFile {
 static INPUTS: Mutex<Vec<InputFile>> = Mutex::new(Vec::new());
 
 /// Device and inode (Unix); `None` elsewhere, where only paths are compared.
+// `None` only off Unix.
+#[cfg_attr(unix, allow(clippy::unnecessary_wraps))]
 fn file_id(meta: &Metadata) -> Option<(u64, u64)> {
     #[cfg(unix)]
     {

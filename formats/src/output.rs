@@ -273,7 +273,7 @@ mod tests {
         std::fs::read_dir(dir)
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n.ends_with(".tmp"))
+            .filter(|n| n.to_ascii_lowercase().ends_with(".tmp"))
             .collect()
     }
 

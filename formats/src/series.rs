@@ -36,7 +36,9 @@ impl FileSeries {
     pub fn open(pattern: &Path, options: &OpenOptions) -> Result<Self, FormatError> {
         let files = expand_pattern(pattern)?;
         // Later steps load lazily; no output may replace them meanwhile.
-        files.iter().for_each(|f| crate::input::note_input(f));
+        for f in &files {
+            crate::input::note_input(f);
+        }
         let first = load_file(&files[0], options)?;
         Ok(Self {
             pattern: pattern.to_path_buf(),

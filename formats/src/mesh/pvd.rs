@@ -33,7 +33,9 @@ pub struct MeshSeries {
 
 /// Steps load lazily; no output may replace them meanwhile ([`crate::input::note_input`]).
 fn note_steps(steps: &[MeshStep]) {
-    steps.iter().for_each(|s| crate::input::note_input(&s.path));
+    for s in steps {
+        crate::input::note_input(&s.path);
+    }
 }
 
 /// What one step adds to the reference mesh (the first step).

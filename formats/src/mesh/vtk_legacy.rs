@@ -658,7 +658,7 @@ pub enum LegacyEncoding {
 
 /// Writes `mesh` as a legacy VTK 4.2 unstructured grid of tetrahedra with all fields as
 /// `SCALARS` (float), through [`crate::output::OutputFile`] (never over an input; an existing
-/// file only with [`Replace::Allow`]; a failed write leaves no file).
+/// file only with [`crate::output::Replace::Allow`]; a failed write leaves no file).
 pub fn write_vtk_legacy(
     path: &Path,
     mesh: &TetMesh,

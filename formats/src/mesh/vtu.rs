@@ -709,7 +709,7 @@ fn xml_escape(s: &str) -> String {
 
 /// Writes `mesh` as a `.vtu` (appended raw, little-endian, UInt64 headers, Float32 points and
 /// fields, Int64 connectivity/offsets, UInt8 types), through [`crate::output::OutputFile`]
-/// (never over an input; an existing file only with [`Replace::Allow`]; a failed write leaves
+/// (never over an input; an existing file only with [`crate::output::Replace::Allow`]; a failed write leaves
 /// no file).
 pub fn write_vtu(
     path: &Path,

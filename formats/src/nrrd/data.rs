@@ -37,7 +37,9 @@ impl DataPlan {
     pub(crate) fn new(header: &NrrdHeader, header_path: &Path) -> Self {
         let files = data_file_paths(header, header_path);
         // Data files are mapped or read on first use; no output may replace them meanwhile.
-        files.iter().for_each(|f| crate::input::note_input(f));
+        for f in &files {
+            crate::input::note_input(f);
+        }
         let total = header.element_count().unwrap_or(0) * header.voxel_type.size_bytes() as u64;
         let per_file_bytes = total / files.len().max(1) as u64;
         let base_offset = if header.data_files == DataFiles::Attached {
