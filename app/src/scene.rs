@@ -620,12 +620,6 @@ fn update_grid_scene(scene: &mut AnyGridScene, volume: &RectilinearVolume) -> St
     }
 }
 
-/// A `bins`-bin histogram of every voxel of `volume` over `[lo, hi]`.
-fn grid_histogram(volume: &RectilinearVolume, lo: f64, hi: f64, bins: usize) -> Histogram {
-    volume_core::dispatch_voxels!(&volume.data, buf =>
-        Histogram::compute(buf.as_slice(), lo, hi, bins))
-}
-
 impl SceneData for GridData {
     fn path(&self) -> &Path {
         &self.path
@@ -654,7 +648,7 @@ impl SceneData for GridData {
         let d = self.volume.dims();
         Some(ValueInfo {
             value_range: (lo, hi),
-            histogram: Some(grid_histogram(&self.volume, lo, hi, bins)),
+            histogram: Some(self.volume.histogram(lo, hi, bins)),
             histogram_note: format!("all {}×{}×{} voxels of the step shown", d[0], d[1], d[2]),
         })
     }

@@ -52,5 +52,7 @@ pub mod volume;
 pub mod voxel;
 
 pub use error::VolumeError;
-pub use volume::{AxisCoords, Grid, RectilinearVolume, VoxelBuffer, VoxelData};
+pub use volume::{
+    AxisCoords, Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData, WorldFrame,
+};
 pub use voxel::{Voxel, VoxelType};

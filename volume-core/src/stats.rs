@@ -2,6 +2,7 @@
 
 use rayon::prelude::*;
 
+use crate::volume::ValueMap;
 use crate::voxel::Voxel;
 
 /// Summary of a volume's values.
@@ -105,6 +106,17 @@ pub struct Histogram {
 impl Histogram {
     /// Counts finite voxels in parallel; values outside `[lo, hi]` are ignored.
     pub fn compute<T: Voxel>(voxels: &[T], lo: f64, hi: f64, bins: usize) -> Self {
+        Self::compute_mapped(voxels, ValueMap::IDENTITY, lo, hi, bins)
+    }
+
+    /// [`Self::compute`] over the physical values `map.to_physical(v)` of stored voxels.
+    pub fn compute_mapped<T: Voxel>(
+        voxels: &[T],
+        map: ValueMap,
+        lo: f64,
+        hi: f64,
+        bins: usize,
+    ) -> Self {
         let bins = bins.max(1);
         let width = hi - lo;
         let counts = voxels
@@ -112,7 +124,7 @@ impl Histogram {
             .map(|chunk| {
                 let mut c = vec![0u64; bins];
                 for &v in chunk {
-                    let x = v.to_f64();
+                    let x = map.to_physical(v.to_f64());
                     if !x.is_finite() || x < lo || x > hi {
                         continue;
                     }

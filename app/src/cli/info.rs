@@ -14,7 +14,7 @@ use anyhow::{Context as _, bail};
 use formats::mesh::MeshSeries;
 use serde::Serialize;
 use volume_core::series::TimeSeries;
-use volume_core::stats::{Histogram, ValueStats};
+use volume_core::stats::ValueStats;
 use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
 
 use super::open_args::OpenArgs;
@@ -70,6 +70,14 @@ pub struct InfoReport {
     /// The grid-to-world affine of oriented data as 3 rows `[m0, m1, m2, t]`, or `null` for the
     /// identity (world = grid frame).
     pub world_from_grid: Option<[[f64; 4]; 3]>,
+    /// What the world axes mean: `"RAS"`, `"LPS"` or `"unknown"`.
+    pub world_frame: String,
+    /// The anatomical direction each grid axis points to, e.g. `["L", "P", "S"]`; `null` when
+    /// the world frame is unknown.
+    pub axis_labels: Option<[String; 3]>,
+    /// Stored → physical values (`physical = slope · stored + intercept`): `null` when the
+    /// file stores physical values. Value ranges and the histogram are physical.
+    pub value_map: Option<volume_core::ValueMap>,
     /// Smallest and largest finite value over all steps, `null` if no voxel is finite.
     pub value_range: Option<[f64; 2]>,
     pub nan_count: u64,
@@ -168,8 +176,7 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
                 } else {
                     steps.get(s, path)?
                 };
-                let h = volume_core::dispatch_voxels!(&v.data, b =>
-                    Histogram::compute(b.as_slice(), lo, hi, HISTOGRAM_BINS));
+                let h = v.histogram(lo, hi, HISTOGRAM_BINS);
                 counts.iter_mut().zip(&h.counts).for_each(|(c, x)| *c += x);
                 progress.inc(1);
             }
@@ -212,6 +219,9 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
         origin: lo.to_array(),
         extent_max: hi.to_array(),
         world_from_grid,
+        world_frame: grid.world_frame().name().to_string(),
+        axis_labels: grid.axis_letters().map(|l| l.map(String::from)),
+        value_map: (!first.value_map.is_identity()).then_some(first.value_map),
         value_range: stats.finite_range.map(|(a, b)| [a, b]),
         nan_count: stats.nan_count,
         inf_count: stats.pos_inf_count + stats.neg_inf_count,
@@ -306,6 +316,25 @@ pub fn render_text(r: &InfoReport) -> String {
                 );
             }
         }
+    }
+    match &r.axis_labels {
+        Some([i, j, k]) => {
+            let _ = writeln!(
+                out,
+                "world frame:  {}  (+i → {i}, +j → {j}, +k → {k})",
+                r.world_frame
+            );
+        }
+        None => {
+            let _ = writeln!(out, "world frame:  {}", r.world_frame);
+        }
+    }
+    if let Some(m) = &r.value_map {
+        let _ = writeln!(
+            out,
+            "values:       physical = {} · stored + {}  (voxels kept as {})",
+            m.slope, m.intercept, r.voxel_type
+        );
     }
     match r.value_range {
         Some([lo, hi]) => {
@@ -683,6 +712,9 @@ mod tests {
             origin: [0.0; 3],
             extent_max: [1.0, 4.0, 9.0],
             world_from_grid: None,
+            world_frame: "LPS".into(),
+            axis_labels: Some(["L", "P", "S"].map(String::from)),
+            value_map: Some(volume_core::ValueMap::new(1.0, -1024.0).unwrap()),
             value_range: Some([0.0, 2.0]),
             nan_count: 1,
             inf_count: 0,
@@ -706,6 +738,12 @@ mod tests {
         assert_eq!(j["spacing"], serde_json::json!([1.0, 2.0, 3.0]));
         assert!(j["coordinates"].is_null());
         assert!(j["world_from_grid"].is_null());
+        assert_eq!(j["world_frame"], "LPS");
+        assert_eq!(j["axis_labels"], serde_json::json!(["L", "P", "S"]));
+        assert_eq!(
+            j["value_map"],
+            serde_json::json!({"slope": 1.0, "intercept": -1024.0})
+        );
         assert_eq!(j["value_range"], serde_json::json!([0.0, 2.0]));
         assert_eq!(j["histogram"]["counts"], serde_json::json!([20, 0, 3]));
         assert_eq!(j["time_steps"], 1);

@@ -19,7 +19,7 @@
 use std::path::Path;
 
 use glam::{DAffine3, DMat3, DVec3};
-use volume_core::{AxisCoords, Grid};
+use volume_core::{AxisCoords, Grid, WorldFrame};
 
 use super::header::{Center, NrrdHeader};
 use crate::error::FormatError;
@@ -218,7 +218,15 @@ impl NrrdHeader {
             "space directions"
         };
         self.check_coordinates(path, field, spatial, dims, &axes, world_from_grid)?;
-        Grid::new(dims, axes, world_from_grid).map_err(geometry)
+        let frame = match self.space.as_deref() {
+            Some("right-anterior-superior") => WorldFrame::Ras,
+            Some("left-posterior-superior") => WorldFrame::Lps,
+            // LAS, scanner and plain 3D spaces name no frame Isoscope labels.
+            _ => WorldFrame::Unknown,
+        };
+        Ok(Grid::new(dims, axes, world_from_grid)
+            .map_err(geometry)?
+            .with_world_frame(frame))
     }
 
     /// Refuses coordinates that single-precision rendering cannot handle, naming the header
@@ -373,6 +381,8 @@ mod tests {
         assert_eq!(l.grid.uniform_spacing(), Some([0.5, 2.0, 3.0]));
         assert_eq!(l.grid.origin(), DVec3::new(1.0, 2.0, 3.0));
         assert_eq!(l.steps, 1);
+        assert_eq!(l.grid.world_frame(), WorldFrame::Ras);
+        assert_eq!(l.grid.axis_letters(), Some(['R', 'A', 'S']));
     }
 
     #[test]
@@ -382,6 +392,9 @@ mod tests {
         )
         .unwrap();
         let m = l.grid.world_from_grid().unwrap();
+        assert_eq!(l.grid.world_frame(), WorldFrame::Lps);
+        // i runs along +y (posterior), j along −x (right).
+        assert_eq!(l.grid.axis_letters(), Some(['P', 'R', 'S']));
         assert_eq!(l.grid.uniform_spacing(), Some([2.0, 1.0, 3.0]));
         assert_eq!(l.grid.origin(), DVec3::ZERO);
         // Voxel (1, 1, 1) in world: origin + 1·d0 + 1·d1 + 1·d2.

@@ -12,7 +12,7 @@ use std::io::Write;
 use std::path::Path;
 
 use glam::DVec3;
-use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
+use volume_core::{AxisCoords, RectilinearVolume, VoxelType, WorldFrame};
 
 use crate::error::FormatError;
 use crate::output::Replace;
@@ -50,6 +50,19 @@ pub(crate) fn header_text(
     encoding: NrrdEncoding,
 ) -> Result<String, FormatError> {
     let grid = &volume.grid;
+    if !volume.value_map.is_identity() {
+        // NRRD has no linear rescale field: writing the stored values alone would change
+        // what they mean.
+        return Err(FormatError::Unsupported {
+            path: path.to_path_buf(),
+            field: "type".into(),
+            reason: format!(
+                "the volume's values are rescaled (slope {}, intercept {}); NRRD stores no \
+                 rescale: convert the values first",
+                volume.value_map.slope, volume.value_map.intercept
+            ),
+        });
+    }
     let Some(spacing) = grid.uniform_spacing() else {
         let axis = grid
             .axes()
@@ -72,9 +85,18 @@ pub(crate) fn header_text(
     let _ = writeln!(h, "type: {}", teem_type(t));
     h.push_str("dimension: 3\n");
     let _ = writeln!(h, "sizes: {} {} {}", dims[0], dims[1], dims[2]);
-    if let Some(m) = grid.world_from_grid() {
+    let frame = grid.world_frame();
+    // A known patient frame is written as `space`, which needs `space directions`.
+    let oriented = grid
+        .world_from_grid()
+        .or_else(|| frame.is_known().then_some(glam::DAffine3::IDENTITY));
+    if let Some(m) = oriented {
         let origin = m.transform_point3(grid.origin());
-        h.push_str("space dimension: 3\n");
+        match frame {
+            WorldFrame::Ras => h.push_str("space: right-anterior-superior\n"),
+            WorldFrame::Lps => h.push_str("space: left-posterior-superior\n"),
+            WorldFrame::Unknown => h.push_str("space dimension: 3\n"),
+        }
         let dirs: Vec<String> = (0..3)
             .map(|a| vec3(m.matrix3.col(a) * spacing[a]))
             .collect();
@@ -211,6 +233,25 @@ mod tests {
             let got = m.transform_point3(r.grid.grid_position(i, j, k));
             assert!((want - got).length() < 1e-12, "{want} vs {got}");
         }
+    }
+
+    #[test]
+    fn round_trips_the_world_frame() {
+        let dir = tempfile::tempdir().unwrap();
+        for frame in [WorldFrame::Ras, WorldFrame::Lps, WorldFrame::Unknown] {
+            let g = Grid::uniform([3, 3, 2], [1.0, -2.0, 3.0], [0.5, 1.0, 2.0]).unwrap();
+            let v = sample(g.with_world_frame(frame));
+            let p = dir.path().join(format!("{frame}.nrrd"));
+            write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap();
+            let r = read_volume(&p);
+            assert_eq!(r.grid, v.grid, "{frame}");
+        }
+        let v = sample(Grid::uniform([3, 3, 2], [0.0; 3], [1.0; 3]).unwrap())
+            .with_value_map(volume_core::ValueMap::new(2.0, 1.0).unwrap());
+        let p = dir.path().join("scaled.nrrd");
+        let e = write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap_err();
+        assert!(e.to_string().contains("rescale"), "{e}");
+        assert!(!p.exists());
     }
 
     #[test]

@@ -14,6 +14,7 @@ use crate::intersect::{
 };
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
+use crate::volume::ValueMap;
 use crate::voxel::Voxel;
 
 /// A borrowed view of a grid scene walked cell by cell (see [`super::GridScene::dda`]).
@@ -23,6 +24,8 @@ pub struct DdaScene<'a, T: Voxel> {
     voxels: &'a [T],
     dims: [usize; 3],
     intersector: Intersector,
+    /// Physical isovalues to stored ones (the kd-tree scene's map).
+    value_map: ValueMap,
 }
 
 impl<'a, T: Voxel> DdaScene<'a, T> {
@@ -38,7 +41,14 @@ impl<'a, T: Voxel> DdaScene<'a, T> {
             voxels,
             dims,
             intersector,
+            value_map: ValueMap::IDENTITY,
         }
+    }
+
+    /// Isovalues are physical values mapped by `value_map` ([`IsoSet::mapped`]).
+    pub fn with_value_map(mut self, value_map: ValueMap) -> Self {
+        self.value_map = value_map;
+        self
     }
 
     /// First hit in traversal terms with a static intersector.
@@ -208,7 +218,7 @@ impl<T: Voxel> IsoScene for DdaScene<'_, T> {
     type Isovalues = IsoSet<T>;
 
     fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
-        IsoSet::new(isovalues)
+        IsoSet::mapped(isovalues, self.value_map)
     }
 
     fn world_bounds(&self) -> Aabb {

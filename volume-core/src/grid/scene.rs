@@ -24,7 +24,7 @@ use crate::kdtree::{
 };
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, SceneVisitor, Stats};
-use crate::volume::{Grid, RectilinearVolume, VoxelBuffer, VoxelData};
+use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
 use crate::voxel::Voxel;
 
 /// A rectilinear volume of voxel type `T`, ready for ray casting.
@@ -35,6 +35,8 @@ pub struct GridScene<T: Voxel> {
     frame: TraversalFrame,
     tree: KdTree<T>,
     intersector: Intersector,
+    /// Isovalues are physical; the voxels stored (a volume's [`ValueMap`]).
+    value_map: ValueMap,
 }
 
 impl<T: Voxel> std::fmt::Debug for GridScene<T> {
@@ -70,7 +72,18 @@ impl<T: Voxel> GridScene<T> {
             frame,
             tree,
             intersector,
+            value_map: ValueMap::IDENTITY,
         })
+    }
+
+    /// Isovalues given to this scene are physical values, mapped to stored ones by
+    /// `value_map` once per frame ([`IsoScene::prepare`]).
+    pub fn set_value_map(&mut self, value_map: ValueMap) {
+        self.value_map = value_map;
+    }
+
+    pub fn value_map(&self) -> ValueMap {
+        self.value_map
     }
 
     pub fn intersector(&self) -> Intersector {
@@ -158,6 +171,7 @@ impl<T: Voxel> GridScene<T> {
             self.dims,
             self.intersector,
         )
+        .with_value_map(self.value_map)
     }
 
     /// The kd-tree hit in traversal terms, with a static intersector.
@@ -310,7 +324,7 @@ impl<T: Voxel> IsoScene for GridScene<T> {
     type Isovalues = IsoSet<T>;
 
     fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
-        IsoSet::new(isovalues)
+        IsoSet::mapped(isovalues, self.value_map)
     }
 
     fn world_bounds(&self) -> Aabb {
@@ -390,10 +404,12 @@ impl AnyGridScene {
     ) -> Self {
         let g = &volume.grid;
         // Lengths were checked when the volume was made.
+        let map = volume.value_map;
         crate::dispatch_voxels!(&volume.data, b => {
-            GridScene::new(g, b.clone(), intersector, config)
-                .expect("volume length checked")
-                .into()
+            let mut s = GridScene::new(g, b.clone(), intersector, config)
+                .expect("volume length checked");
+            s.set_value_map(map);
+            s.into()
         })
     }
 
@@ -430,6 +446,7 @@ impl AnyGridScene {
         let refit = same_dims
             && crate::match_voxel!(
                 AnyGridScene, &mut *self, s; VoxelData, &volume.data, b => {
+                    s.set_value_map(volume.value_map);
                     s.replace_voxels(b.clone()).is_ok() && s.set_grid(&volume.grid).is_ok()
                 };
                 else false

@@ -36,6 +36,7 @@ use std::str::FromStr;
 
 use glam::Vec3;
 
+use crate::volume::ValueMap;
 use crate::voxel::{Voxel, VoxelType};
 
 pub use frame::{LocalRay, TraversalFrame};
@@ -266,6 +267,12 @@ pub struct IsoSet<T: Voxel> {
 
 impl<T: Voxel> IsoSet<T> {
     pub fn new(isovalues: &[f32]) -> Self {
+        Self::mapped(isovalues, ValueMap::IDENTITY)
+    }
+
+    /// The set of physical `isovalues` over voxels whose stored values `map` turns into
+    /// physical ones: each isovalue is mapped to stored units here, once per frame.
+    pub fn mapped(isovalues: &[f32], map: ValueMap) -> Self {
         let mut s = Self {
             len: 0,
             lo: [T::default(); INLINE_ISOVALUES],
@@ -275,6 +282,7 @@ impl<T: Voxel> IsoSet<T> {
             spill: Vec::new(),
         };
         for (i, &c) in isovalues.iter().enumerate() {
+            let c = map.iso_to_stored(c);
             let Some((lo, hi)) = native_bounds::<T>(c) else {
                 continue;
             };
@@ -549,6 +557,21 @@ mod tests {
         assert_eq!(hits, vec![(100.5, 0), (7.0, 2)]);
         // An empty range (min > max) never matches.
         assert!(!IsoSet::<f32>::new(&[0.0]).any_in(f32::MAX, f32::MIN));
+    }
+
+    #[test]
+    fn mapped_isovalues_are_stored_units() {
+        // CT: HU = stored − 1024; bone at 500 HU is stored 1524, air at −1000.5 HU between
+        // stored 23 and 24.
+        let m = ValueMap::new(1.0, -1024.0).unwrap();
+        let s = IsoSet::<u16>::mapped(&[500.0, -1000.5], m);
+        assert!(s.any_in(1524, 1524) && !s.any_in(1525, 2000));
+        assert!(s.any_in(23, 24) && !s.any_in(24, 30));
+        let mut v = vec![];
+        s.for_each_in(0, 4095, |c, i| v.push((c, i)));
+        assert_eq!(v, vec![(1524.0, 0), (23.5, 1)]);
+        // A physical isovalue below the stored type's range is dropped.
+        assert!(IsoSet::<u16>::mapped(&[-2000.0], m).is_empty());
     }
 
     #[test]

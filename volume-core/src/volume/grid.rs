@@ -4,6 +4,7 @@ use std::sync::Arc;
 
 use glam::{DAffine3, DVec3};
 
+use super::world_frame::WorldFrame;
 use crate::error::VolumeError;
 
 /// Sample coordinates along one axis, in the grid frame (world units, e.g. millimetres).
@@ -98,6 +99,8 @@ pub struct Grid {
     axes: [AxisCoords; 3],
     /// Maps grid-frame positions to world positions; `None` is the identity.
     world_from_grid: Option<DAffine3>,
+    /// What the world axes mean anatomically (RAS, LPS or unknown).
+    world_frame: WorldFrame,
 }
 
 impl Grid {
@@ -186,7 +189,41 @@ impl Grid {
             dims,
             axes,
             world_from_grid,
+            world_frame: WorldFrame::Unknown,
         })
+    }
+
+    /// The same grid with its world axes given an anatomical meaning.
+    pub fn with_world_frame(mut self, frame: WorldFrame) -> Self {
+        self.world_frame = frame;
+        self
+    }
+
+    pub fn world_frame(&self) -> WorldFrame {
+        self.world_frame
+    }
+
+    /// The world direction (unit length) of grid axis `a`: the column of `world_from_grid`'s
+    /// linear part, or the world axis itself.
+    pub fn axis_direction(&self, a: usize) -> DVec3 {
+        if let Some(m) = self.world_from_grid {
+            m.matrix3.col(a).normalize_or_zero()
+        } else {
+            let mut d = DVec3::ZERO;
+            d[a] = 1.0;
+            d
+        }
+    }
+
+    /// The anatomical letter each grid axis points to (`+i → L`, …), or `None` when the
+    /// world frame is unknown.
+    pub fn axis_letters(&self) -> Option<[char; 3]> {
+        let f = self.world_frame;
+        Some([
+            f.direction_letter(self.axis_direction(0))?,
+            f.direction_letter(self.axis_direction(1))?,
+            f.direction_letter(self.axis_direction(2))?,
+        ])
     }
 
     pub fn dims(&self) -> [usize; 3] {
@@ -257,7 +294,7 @@ impl Grid {
     /// Replaces the per-axis coordinates (same dims), e.g. a spacing edit (thesis §7.6: only
     /// the kd-tree's split tables depend on these).
     pub fn with_axes(&self, axes: [AxisCoords; 3]) -> Result<Self, VolumeError> {
-        Self::new(self.dims, axes, self.world_from_grid)
+        Ok(Self::new(self.dims, axes, self.world_from_grid)?.with_world_frame(self.world_frame))
     }
 }
 
@@ -336,6 +373,33 @@ mod tests {
         // Large but representable grids still open.
         assert!(Grid::uniform([256, 2, 2], [-1e14, 0.0, 0.0], [1e11, 1.0, 1.0]).is_ok());
         assert!(Grid::new([2, 2, 2], [u.clone(), u.clone(), u], None).is_ok());
+    }
+
+    #[test]
+    fn axis_letters_follow_orientation_and_frame() {
+        let g = Grid::uniform([2, 2, 2], [0.0; 3], [1.0; 3]).unwrap();
+        assert_eq!(g.axis_letters(), None);
+        let g = g.with_world_frame(WorldFrame::Lps);
+        assert_eq!(g.axis_letters(), Some(['L', 'P', 'S']));
+        // A sagittal grid in RAS: i runs posterior-to-anterior, j toward inferior, k left.
+        let m = DAffine3::from_cols(
+            DVec3::new(0.0, 2.0, 0.0),
+            DVec3::new(0.0, 0.0, -1.0),
+            DVec3::new(-1.0, 0.0, 0.0),
+            DVec3::ZERO,
+        );
+        let u = AxisCoords::Uniform {
+            origin: 0.0,
+            spacing: 1.0,
+        };
+        let s = Grid::new([2, 2, 2], [u.clone(), u.clone(), u], Some(m))
+            .unwrap()
+            .with_world_frame(WorldFrame::Ras);
+        assert_eq!(s.axis_letters(), Some(['A', 'I', 'L']));
+        assert_eq!(s.axis_direction(0), DVec3::Y);
+        // Edits of the axes keep the frame.
+        let e = s.with_axes(s.axes().clone()).unwrap();
+        assert_eq!(e.world_frame(), WorldFrame::Ras);
     }
 
     #[test]
