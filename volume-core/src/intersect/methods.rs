@@ -146,44 +146,6 @@ fn refine(k: &[f32; 4], mut s0: f32, mut f0: f32, mut s1: f32, mut f1: f32, n: u
     s.clamp(s0.min(s1), s0.max(s1))
 }
 
-/// Regula falsi with the Illinois modification (an end kept twice has its value halved),
-/// which avoids the one-sided stagnation of plain regula falsi on convex pieces.
-#[inline(always)]
-fn refine_illinois(
-    k: &[f32; 4],
-    mut s0: f32,
-    mut f0: f32,
-    mut s1: f32,
-    mut f1: f32,
-    n: u32,
-) -> f32 {
-    let mut side = 0i8;
-    for _ in 0..n {
-        let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
-        let fs = eval(k, s);
-        if fs == 0.0 {
-            return s;
-        }
-        if (fs > 0.0) == (f0 > 0.0) {
-            s0 = s;
-            f0 = fs;
-            if side == -1 {
-                f1 *= 0.5;
-            }
-            side = -1;
-        } else {
-            s1 = s;
-            f1 = fs;
-            if side == 1 {
-                f0 *= 0.5;
-            }
-            side = 1;
-        }
-    }
-    let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
-    s.clamp(s0.min(s1), s0.max(s1))
-}
-
 /// Linear: assumes `f` is linear between entry and exit (thesis §7.2.2). Misses pairs of
 /// roots (entering and leaving the surface in one cell) and tangent touches; its hit
 /// position errs by the cubic's curvature over the segment (up to a sizeable fraction of a
@@ -238,68 +200,104 @@ impl CellIntersector for Neubauer {
     }
 }
 
-/// Roots of `3a·s² + 2b·s + c` (the extrema of the cubic) inside `(0, 1)`, sorted.
-#[inline(always)]
-fn extrema_f32(k: &[f32; 4]) -> ([f32; 2], usize) {
-    let (qa, qb, qc) = (3.0 * k[0], 2.0 * k[1], k[2]);
-    let mut out = [0.0f32; 2];
-    let mut n = 0;
-    let mut push = |e: f32| {
-        if e > 0.0 && e < 1.0 {
-            out[n] = e;
-            n += 1;
-        }
-    };
-    if qa == 0.0 {
-        if qb != 0.0 {
-            push(-qc / qb);
-        }
-    } else {
-        let disc = qb * qb - 4.0 * qa * qc;
-        if disc >= 0.0 {
-            // Numerically stable pair (no cancellation between -b and sqrt).
-            let r = disc.sqrt();
-            let q = -0.5 * (qb + r.copysign(qb));
-            let (e0, e1) = if q == 0.0 {
-                (0.0, 0.0)
-            } else {
-                (q / qa, qc / q)
-            };
-            let (e0, e1) = if e0 <= e1 { (e0, e1) } else { (e1, e0) };
-            push(e0);
-            if e1 != e0 {
-                push(e1);
-            }
-        }
-    }
-    (out, n)
-}
-
-/// The exact iterative method of Listing 7.1 (thesis seed 004 §7.2.2): the extrema split
-/// `[0, 1]` into monotone pieces; the first piece whose ends differ in sign holds the first
-/// root, which regula falsi refines (with the Illinois modification; the listing's plain
-/// regula falsi stagnates on convex pieces, leaving errors of a few hundredths of a cell).
-/// "Exact" means no root is lost; the position error is that of [`EXACT_ITERATIONS`]
-/// Illinois steps in `f32` (see docs/accuracy.md for measured |Δt|). An extremum where `|f| ≤ 64·ε·max|g|` counts as a touching
-/// (double) root, so tangent rays hit; near-tangent misses within that band are reported as
-/// hits (a false hit of at most that size).
+/// The exact iterative method of Listing 7.1 (thesis seed 004 §7.2.2), made exact on every
+/// ray by a certified fast path and an exact slow path:
+///
+/// 1. **Fast path, `f32`** (most cells): the segment's cubic in `f32` and its Bernstein
+///    coefficients, whose convex hull contains the cubic on `[0, 1]`. When every coefficient
+///    lies farther from 0 than a rigorous bound on the error of this `f32` computation
+///    against the `f64` truth ([`ExactMargin`]: corner differences, segment ends, cubic
+///    coefficients, evaluation), the segment provably holds no crossing and no touch: `None`.
+/// 2. **Slow path, `f64`** (the rest: cells the ray crosses or passes within the bound): the
+///    segment's ends from the exact slab ([`CellSegment::local_f64`]), the cubic in `f64`,
+///    and Listing 7.1's monotone pieces between the derivative's roots, decided exactly as
+///    [`Reference`] decides them ([`first_root_f64`]: the same extrema, sign tests and touch
+///    tolerance), so the first crossing is found on every ray the reference finds it on and
+///    never on another; regula falsi with the Illinois modification then refines it in
+///    `f64` (the listing's plain regula falsi stagnates on convex pieces).
+///
+/// Before, the whole method ran in `f32` with a touching band of `64·ε·max|g|`: at 1024²
+/// a few rays in a million passed within that band of the surface without touching it
+/// (a false hit, seen as a far hit when the next surface lay behind), and the `f32` segment
+/// ends (rounded `t`, ~6e-5 cells for a ray from 700 cells away) could move a crossing near
+/// a face out of both cells (docs/accuracy.md).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Exact;
 
-/// Regula-falsi steps of [`Exact`] after the monotone piece is found.
-pub const EXACT_ITERATIONS: u32 = 8;
+/// Illinois steps of the slow path at most (it stops earlier once the bracket is below
+/// `f64` resolution or `f` vanishes).
+pub const EXACT_ITERATIONS: u32 = 24;
+
+/// The error bound of [`Exact`]'s `f32` fast path for one cell and one isovalue, in the
+/// units of the (scaled) corner differences `g` of [`corner_diffs`].
+///
+/// Against the `f64` cubic on the exact segment (what [`Reference`] and the slow path see):
+/// - corner differences `v − iso` rounded to `f32`: `ε·Σ|g|`;
+/// - the cubic's coefficients from the `f32` segment by three nested lerps: under
+///   `24·ε·Σ|g|` for segment coordinates within `[−δ, 1 + δ]`, `δ ≪ 1`;
+/// - the `f32` segment ends: each in-face coordinate is off by at most
+///   `6·ε·(|o − lo| + |d|·|t|)/w` (the `f32` slab `t` errs by `3ε·|t|`, the point by two
+///   roundings), and the trilinear interpolant is `1.1·Σ|g|`-Lipschitz per axis there, so
+///   the values differ by at most `1.1·Σ|g|·Σ_axes(e_entry + e_exit)`;
+/// - Bernstein coefficients and Horner evaluation of the `f32` cubic: `16·ε·Σ|k|` (see
+///   [`bernstein_clear`]).
+///
+/// [`ExactMargin::with_segment`] adds the segment term for one ray.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ExactMargin {
+    /// `Σ|g|` of the cell's corner differences.
+    gsum: f32,
+}
+
+impl ExactMargin {
+    #[inline(always)]
+    pub(crate) fn new(g: &[f32; 8]) -> Self {
+        Self {
+            gsum: g.iter().map(|x| x.abs()).sum(),
+        }
+    }
+
+    /// The margin for one segment whose ends err by at most `seg_err` cell units in all,
+    /// before the evaluation term of [`bernstein_clear`].
+    #[inline(always)]
+    pub(crate) fn with_segment(self, seg_err: f32) -> f32 {
+        self.gsum * (32.0 * f32::EPSILON + 2.2 * seg_err)
+    }
+}
+
+/// `Σ_axes 6ε·(|o − lo| + |d|·max(|t_near|, |t_far|))/w`: the bound on the error of one end of
+/// [`CellSegment::local_f32`] summed over the axes (see [`ExactMargin`]).
+#[inline(always)]
+fn segment_error(seg: &CellSegment) -> f32 {
+    let t = seg.t_near.abs().max(seg.t_far.abs());
+    let inv_w = (seg.hi - seg.lo).recip();
+    let mut e = 0.0f32;
+    for a in 0..3 {
+        e += ((seg.origin[a] - seg.lo[a]).abs() + seg.dir[a].abs() * t) * inv_w[a];
+    }
+    6.0 * f32::EPSILON * e
+}
 
 impl CellIntersector for Exact {
     #[inline]
     fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
-        let Ok((k, gmax)) = setup(corners, iso, seg) else {
+        let (g, gmax) = corner_diffs(corners, iso);
+        if gmax == 0.0 {
+            // The cell equals the isovalue: the whole segment lies on the surface.
             return Some(0.0);
-        };
-        exact_first_root(&k, gmax, true)
+        }
+        let (p0, dp) = seg.local_f32();
+        let k = cubic_f32(&g, p0, dp);
+        let margin = ExactMargin::new(&g).with_segment(segment_error(seg));
+        if bernstein_clear(&k, margin) {
+            return None;
+        }
+        exact_slow(corners, iso, seg)
     }
 
-    /// The corner differences once per cell, the segments' cubics and the Bernstein early out
-    /// 8 lanes at a time; only lanes that are not clear run the scalar root search.
+    /// The corner differences once per cell, the segments' cubics and the certified early
+    /// out 8 lanes at a time (the scalar operations lane-wise); only lanes that are not
+    /// clear run the `f64` slow path, the same function the scalar method calls.
     #[inline(always)]
     fn first_roots_x8<T: Voxel>(
         &self,
@@ -311,22 +309,20 @@ impl CellIntersector for Exact {
         let mut r = RootsX8::default();
         let (g, gmax) = corner_diffs(corners, iso);
         if gmax == 0.0 {
-            // `setup`'s Err: the cell equals the isovalue, every segment is hit at its entry.
             r.mask = mask;
             return r;
         }
         let (p0, dp) = seg.local_f32();
         let k = cubic_x8(&g, p0, dp);
-        let tol = 64.0 * f32::EPSILON * gmax;
-        // Lanes with f(0) = 0 are never clear (see bernstein_clear), so they reach the
-        // scalar method, which returns 0 for them first thing.
-        let mut bits = mask & !bernstein_clear_x8(&k, tol);
-        let k = k.map(f32x8::to_array);
+        let margin = ExactMargin::new(&g);
+        let seg_err = segment_error_x8(seg);
+        let margin = f32x8::splat(margin.gsum)
+            * (f32x8::splat(32.0 * f32::EPSILON) + f32x8::splat(2.2) * seg_err);
+        let mut bits = mask & !bernstein_clear_x8(&k, margin);
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            // The early out already said "not clear" for this lane (same operations).
-            if let Some(s) = exact_first_root(&[k[0][i], k[1][i], k[2][i], k[3][i]], gmax, false) {
+            if let Some(s) = exact_slow(corners, iso, &seg.lane(i)) {
                 r.s[i] = s;
                 r.mask |= 1 << i;
             }
@@ -335,64 +331,81 @@ impl CellIntersector for Exact {
     }
 }
 
-/// [`Exact`] on the cubic `k` of a cell whose largest corner difference is `gmax`;
-/// `early_out` enables [`bernstein_clear`] (off only to test that it changes nothing).
+/// [`segment_error`] lane-wise (same operations).
 #[inline(always)]
-fn exact_first_root(k: &[f32; 4], gmax: f32, early_out: bool) -> Option<f64> {
-    let k = *k;
-    let f0 = k[3];
-    if f0 == 0.0 {
-        return Some(0.0);
+fn segment_error_x8(seg: &SegmentsX8<'_>) -> f32x8 {
+    let r = seg.rays;
+    let t = seg.t_near.abs().max(seg.t_far.abs());
+    let inv_w = (seg.hi - seg.lo).recip();
+    let mut e = f32x8::ZERO;
+    for a in 0..3 {
+        let rel = (r.origin[a] - f32x8::splat(seg.lo[a])).abs();
+        e += (rel + r.dir[a].abs() * t) * f32x8::splat(inv_w[a]);
     }
-    let tol = 64.0 * f32::EPSILON * gmax;
-    if early_out && bernstein_clear(&k, tol) {
-        return None;
-    }
-    let (ext, n) = extrema_f32(&k);
-    let (mut s_prev, mut f_prev) = (0.0f32, f0);
-    let ends = ext[..n].iter().map(|&e| (e, true));
-    for (s, is_extremum) in ends.chain(std::iter::once((1.0, false))) {
-        let fs = eval(&k, s);
-        if fs == 0.0 {
-            return Some(f64::from(s));
-        }
-        if (fs > 0.0) != (f_prev > 0.0) {
-            return Some(f64::from(refine_illinois(
-                &k,
-                s_prev,
-                f_prev,
-                s,
-                fs,
-                EXACT_ITERATIONS,
-            )));
-        }
-        if is_extremum && fs.abs() <= tol {
-            return Some(f64::from(s));
-        }
-        s_prev = s;
-        f_prev = fs;
-    }
-    None
+    f32x8::splat(6.0 * f32::EPSILON) * e
 }
 
-/// True when `f` provably stays farther than `tol` from 0 on `[0, 1]` *as [`Exact`]
-/// evaluates it*, so [`Exact`] would return `None`: the early out for rays that cross a
-/// straddling cell without touching the surface (most intersection tests), skipping the
-/// extrema (a square root, divisions) and the evaluations.
+/// The `f64` slow path of [`Exact`]: [`first_root_f64`] on the exact segment, refined by
+/// Illinois steps; the root as a position on the `f32` segment.
+#[inline(never)]
+fn exact_slow<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+    let Ok(c) = CubicF64::new(corners, iso, seg) else {
+        return Some(0.0);
+    };
+    let s = first_root_f64(&c.k, c.tol, refine_illinois_f64)?;
+    Some(c.s_on_f32_segment(seg, s))
+}
+
+/// Regula falsi with the Illinois modification (an end kept twice has its value halved,
+/// which avoids plain regula falsi's one-sided stagnation on convex pieces), on
+/// `[s0, s1]` with `f(s0) = f0` and `f(s1)` of opposite signs, in `f64`.
+fn refine_illinois_f64(k: &[f64; 4], mut s0: f64, mut f0: f64, mut s1: f64) -> f64 {
+    let mut f1 = eval64(k, s1);
+    let mut side = 0i8;
+    for _ in 0..EXACT_ITERATIONS {
+        if (s1 - s0).abs() <= 4.0 * f64::EPSILON {
+            break;
+        }
+        let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
+        let fs = eval64(k, s);
+        if fs == 0.0 {
+            return s;
+        }
+        if (fs > 0.0) == (f0 > 0.0) {
+            s0 = s;
+            f0 = fs;
+            if side == -1 {
+                f1 *= 0.5;
+            }
+            side = -1;
+        } else {
+            s1 = s;
+            f1 = fs;
+            if side == 1 {
+                f0 *= 0.5;
+            }
+            side = 1;
+        }
+    }
+    let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
+    s.clamp(s0.min(s1), s0.max(s1))
+}
+
+/// True when the Bernstein coefficients of `k` all exceed `margin + 16ε·Σ|k|` (or all lie
+/// below its negative): then the cubic stays farther than `margin` from 0 on `[0, 1]`
+/// whatever the rounding of these coefficients and of any Horner evaluation.
 ///
 /// On `[0, 1]` the cubic lies in the convex hull of its Bernstein coefficients
 /// `d, d + c/3, d + 2c/3 + b/3, a + b + c + d`. With `S = |a| + |b| + |c| + |d|`, forming
 /// them in `f32` errs by at most about `3ε·S` and a Horner evaluation at any `s ∈ [0, 1]`
-/// by about `6ε·S`; so if every coefficient exceeds `tol + 16ε·S` (or all are below its
-/// negative), every value [`Exact`] computes has one sign and magnitude above `tol`: no
-/// zero, no sign change, no tangent touch. Results are bit-identical to the full method.
+/// by about `6ε·S`; `16ε·S` covers both.
 #[inline(always)]
-fn bernstein_clear(k: &[f32; 4], tol: f32) -> bool {
+fn bernstein_clear(k: &[f32; 4], margin: f32) -> bool {
     let [a, b, c, d] = *k;
     let b1 = d + c * (1.0 / 3.0);
     let b2 = d + c * (2.0 / 3.0) + b * (1.0 / 3.0);
     let b3 = a + b + c + d;
-    let margin = tol + 16.0 * f32::EPSILON * (a.abs() + b.abs() + c.abs() + d.abs());
+    let margin = margin + 16.0 * f32::EPSILON * (a.abs() + b.abs() + c.abs() + d.abs());
     let lo = d.min(b1).min(b2.min(b3));
     let hi = d.max(b1).max(b2.max(b3));
     lo > margin || hi < -margin
@@ -426,16 +439,16 @@ pub(crate) fn cubic_x8(g: &[f32; 8], p0: [f32x8; 3], dp: [f32x8; 3]) -> [f32x8; 
     ]
 }
 
-/// [`bernstein_clear`] lane-wise: bit `i` set when lane `i` is clear (same operations;
-/// `wide`'s `min`/`max` ignore a NaN operand like `f32::min`/`max`).
+/// [`bernstein_clear`] lane-wise with a margin per lane: bit `i` set when lane `i` is
+/// clear (same operations; `wide`'s `min`/`max` ignore a NaN operand like `f32::min`/`max`).
 #[inline(always)]
-fn bernstein_clear_x8(k: &[f32x8; 4], tol: f32) -> u32 {
+fn bernstein_clear_x8(k: &[f32x8; 4], margin: f32x8) -> u32 {
     let [a, b, c, d] = *k;
     let b1 = d + c * f32x8::splat(1.0 / 3.0);
     let b2 = d + c * f32x8::splat(2.0 / 3.0) + b * f32x8::splat(1.0 / 3.0);
     let b3 = a + b + c + d;
-    let margin = f32x8::splat(tol)
-        + f32x8::splat(16.0 * f32::EPSILON) * (a.abs() + b.abs() + c.abs() + d.abs());
+    let margin =
+        margin + f32x8::splat(16.0 * f32::EPSILON) * (a.abs() + b.abs() + c.abs() + d.abs());
     let lo = d.min(b1).min(b2.min(b3));
     let hi = d.max(b1).max(b2.max(b3));
     (lo.simd_gt(margin) | hi.simd_lt(-margin)).to_bitmask()
@@ -524,28 +537,48 @@ fn solve_cubic_schwarze(k: [f32; 4], out: &mut [f32; 3]) {
 }
 
 /// The `f64` reference: isolates every root of the cubic on `[0, 1]` and returns the first,
-/// to full double precision. The derivative's roots (refined by Newton steps) split the
-/// segment into monotone pieces; a piece whose ends differ in sign is bisected until its
-/// ends are adjacent doubles; an extremum with `|f|` below a rigorous rounding bound
-/// (`64·ε₆₄·Σ|g_i|·Π(weights)`) is a touching double or triple root and counts as a hit.
-/// Corner differences `v − iso` are formed in `f64` from the native voxels (exact for every
-/// integer type and for `f32`), and the segment in cell-local coordinates is formed in `f64`
-/// from the same `f32` ray and cell bounds the other methods see.
+/// to full double precision ([`first_root_f64`], then bisection until the bracket's ends are
+/// adjacent doubles). Corner differences `v − iso` are formed in `f64` from the native voxels
+/// (exact for every integer type and for `f32`), and the segment in cell-local coordinates
+/// is the part of the same `f32` ray inside the same cell bounds the other methods see,
+/// with its ends computed in `f64` ([`CellSegment::local_f64`]).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Reference;
 
 impl CellIntersector for Reference {
     fn first_root<T: Voxel>(&self, corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+        let Ok(c) = CubicF64::new(corners, iso, seg) else {
+            return Some(0.0);
+        };
+        let s = first_root_f64(&c.k, c.tol, bisect)?;
+        Some(c.s_on_f32_segment(seg, s))
+    }
+}
+
+/// A cell segment's cubic in `f64` on the exact segment, with the touch tolerance of
+/// [`first_root_f64`] (shared by [`Reference`] and [`Exact`]'s slow path).
+struct CubicF64 {
+    k: [f64; 4],
+    tol: f64,
+    /// The exact segment's ends (ray parameters).
+    t0: f64,
+    t1: f64,
+}
+
+impl CubicF64 {
+    /// `Err` for a cell equal to the isovalue everywhere (the hit is the segment's entry).
+    #[inline(always)]
+    fn new<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Result<Self, ()> {
         let iso = f64::from(iso);
         let mut g = corners.map(|v| v.to_f64() - iso);
         let gmax = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         if gmax == 0.0 {
-            return Some(0.0);
+            return Err(());
         }
         if !(1e-200..=1e200).contains(&gmax) {
             g = g.map(|x| x / gmax);
         }
-        let (p0, dp) = seg.local_f64();
+        let (p0, dp, t0, t1) = seg.local_f64();
         let k = cubic_f64(&g, p0, dp);
         // Bound on Σ|terms| of f over the segment: each weight's magnitude is at most
         // max(|x|, |1 − x|) at the segment ends, per axis.
@@ -555,13 +588,32 @@ impl CellIntersector for Reference {
             wmax *= x0.abs().max(x1.abs()) + (1.0 - x0).abs().max((1.0 - x1).abs());
         }
         let gsum: f64 = g.iter().map(|x| x.abs()).sum();
-        let tol = 64.0 * f64::EPSILON * gsum * wmax;
-        reference_first_root(&k, tol)
+        Ok(Self {
+            k,
+            tol: 64.0 * f64::EPSILON * gsum * wmax,
+            t0,
+            t1,
+        })
+    }
+
+    /// A root `s` of this cubic as a position on the `f32` segment `[t_near, t_far]` that
+    /// [`CellSegment::t_at`] turns into the ray parameter.
+    #[inline(always)]
+    fn s_on_f32_segment(&self, seg: &CellSegment, s: f64) -> f64 {
+        seg.s_of_t(self.t0 + s * (self.t1 - self.t0))
     }
 }
 
-/// First root of the cubic `k` on `[0, 1]` (see [`Reference`]).
-pub(crate) fn reference_first_root(k: &[f64; 4], tol: f64) -> Option<f64> {
+/// The first root of the cubic `k` on `[0, 1]`, decided in `f64`: the derivative's roots
+/// (refined by Newton steps) split the segment into monotone pieces; the first piece whose
+/// ends differ in sign holds the first crossing, which `refine(k, s0, f(s0), s1)` locates;
+/// an extremum with `|f| ≤ tol` (a rigorous rounding bound) is a touching double or triple
+/// root and counts as a hit.
+pub(crate) fn first_root_f64(
+    k: &[f64; 4],
+    tol: f64,
+    refine: impl Fn(&[f64; 4], f64, f64, f64) -> f64,
+) -> Option<f64> {
     let f0 = k[3];
     if f0 == 0.0 {
         return Some(0.0);
@@ -620,13 +672,13 @@ pub(crate) fn reference_first_root(k: &[f64; 4], tol: f64) -> Option<f64> {
     for (s, is_extremum) in ends.chain(std::iter::once((1.0, false))) {
         let fs = eval64(k, s);
         if fs == 0.0 {
-            // A touching root at an extremum, or a root exactly at an end: but a sign
-            // change strictly inside the piece comes first only if f_prev and fs differ,
-            // which a zero cannot.
+            // A touching root at an extremum, or a root exactly at an end: a sign change
+            // strictly inside the piece comes first only if f_prev and fs differ, which a
+            // zero cannot.
             return Some(s);
         }
         if (fs > 0.0) != (f_prev > 0.0) {
-            return Some(bisect(k, s_prev, f_prev, s));
+            return Some(refine(k, s_prev, f_prev, s));
         }
         if is_extremum && fs.abs() <= tol {
             return Some(s);
@@ -661,6 +713,7 @@ fn bisect(k: &[f64; 4], mut lo: f64, f_lo: f64, mut hi: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     /// f(s) evaluated straight from the trilinear definition.
     fn trilinear(g: &[f64; 8], p: [f64; 3]) -> f64 {
@@ -696,19 +749,19 @@ mod tests {
     fn reference_finds_simple_double_and_triple_roots() {
         // (s − 0.25)(s − 0.5)(s − 0.75) = s³ − 1.5 s² + 0.6875 s − 0.09375
         let k = [1.0, -1.5, 0.6875, -0.09375];
-        assert!((reference_first_root(&k, 1e-15).unwrap() - 0.25).abs() < 1e-15);
+        assert!((first_root_f64(&k, 1e-15, bisect).unwrap() - 0.25).abs() < 1e-15);
         // Touching double root at 0.5: (s − 0.5)² = s² − s + 0.25.
         let k = [0.0, 1.0, -1.0, 0.25];
-        assert_eq!(reference_first_root(&k, 1e-15), Some(0.5));
+        assert_eq!(first_root_f64(&k, 1e-15, bisect), Some(0.5));
         // Just missing the tangent.
         let k = [0.0, 1.0, -1.0, 0.25 + 1e-9];
-        assert_eq!(reference_first_root(&k, 1e-15), None);
+        assert_eq!(first_root_f64(&k, 1e-15, bisect), None);
         // Triple root at 0.5: (s − 0.5)³.
         let k = [1.0, -1.5, 0.75, -0.125];
-        assert!((reference_first_root(&k, 1e-15).unwrap() - 0.5).abs() < 1e-5);
+        assert!((first_root_f64(&k, 1e-15, bisect).unwrap() - 0.5).abs() < 1e-5);
         // Root at the exit end.
         let k = [0.0, 0.0, 1.0, -1.0];
-        assert_eq!(reference_first_root(&k, 1e-15), Some(1.0));
+        assert_eq!(first_root_f64(&k, 1e-15, bisect), Some(1.0));
     }
 
     #[test]
@@ -723,36 +776,81 @@ mod tests {
         }
     }
 
+    /// A random segment of a ray from `dist` cells away through cell `lo..lo + 1`, as the
+    /// traversal forms it (`f32` slab), or `None` if the ray misses the cell.
+    fn random_segment(rnd: &mut impl FnMut() -> f32, lo: Vec3, dist: f32) -> Option<CellSegment> {
+        use crate::intersect::{LocalRay, frame::slab};
+        let target = lo + Vec3::new(rnd(), rnd(), rnd());
+        let dir = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize() * (1.0 + 100.0 * rnd());
+        let origin = target - dir.normalize() * dist;
+        let ray = LocalRay::new(origin, dir);
+        let hi = lo + Vec3::ONE;
+        let (t_near, t_far) = slab(&ray, lo, hi, 0.0, f32::INFINITY)?;
+        Some(CellSegment {
+            origin,
+            dir,
+            inv_dir: ray.inv_dir,
+            lo,
+            hi,
+            t_near,
+            t_far,
+        })
+    }
+
     #[test]
-    fn bernstein_early_out_changes_no_exact_result() {
-        // Random cells and segments, near-tangent ones included: the early out must only
-        // skip cells the full method misses, and it must fire often.
+    fn exact_decides_every_segment_as_the_reference_does() {
+        // Random cells (a third of them barely straddling the isovalue, so that near-tangent
+        // and near-face crossings are common) and rays from near and far (up to 2000 cells,
+        // where f32 segment ends err by ~1e-4 cells): the certified early out may only skip
+        // segments the f64 slow path misses, the slow path must decide every segment as the
+        // reference does, and the early out must still fire on most segments.
         let mut rng = crate::math::rng::Rng::new(0x9e37_79b9_7f4a_7c15);
         let mut rnd = || rng.unit_f32();
-        let (mut skipped, mut total) = (0, 0);
+        let (mut skipped, mut total, mut hits) = (0, 0, 0);
         for case in 0..200_000 {
-            let mut g: [f32; 8] = std::array::from_fn(|_| 2.0 * rnd() - 1.0);
+            let mut corners: [f32; 8] = std::array::from_fn(|_| 2.0 * rnd() - 1.0);
             if case % 3 == 0 {
-                // Shift towards a tangent: corners barely straddle 0.
-                let m = g.iter().fold(f32::INFINITY, |m, v| m.min(*v));
-                g = g.map(|v| v - m - 1e-4 * rnd());
+                let m = corners.iter().fold(f32::INFINITY, |m, v| m.min(*v));
+                corners = corners.map(|v| v - m - 1e-4 * rnd());
             }
-            let p0 = [rnd(), rnd(), rnd()];
-            let dp = [0, 1, 2].map(|a| (rnd() - p0[a]) * if case % 5 == 0 { 1e-3 } else { 1.0 });
-            let k = cubic_f32(&g, p0, dp);
-            let gmax = g.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-            let full = exact_first_root(&k, gmax, false);
-            let fast = exact_first_root(&k, gmax, true);
-            assert_eq!(full, fast, "case {case}: g {g:?} p0 {p0:?} dp {dp:?}");
+            let lo = Vec3::new(
+                (rnd() * 500.0).floor(),
+                (rnd() * 500.0).floor(),
+                (rnd() * 200.0).floor(),
+            );
+            let dist = [3.0, 50.0, 700.0, 2000.0][case % 4];
+            let Some(seg) = random_segment(&mut rnd, lo, dist) else {
+                continue;
+            };
             total += 1;
-            let tol = 64.0 * f32::EPSILON * gmax;
-            if k[3] != 0.0 && bernstein_clear(&k, tol) {
+            let fast = Exact.first_root(&corners, 0.0, &seg);
+            let slow = exact_slow(&corners, 0.0, &seg);
+            let truth = Reference.first_root(&corners, 0.0, &seg);
+            let cleared = {
+                let (g, _) = corner_diffs(&corners, 0.0);
+                let (p0, dp) = seg.local_f32();
+                let k = cubic_f32(&g, p0, dp);
+                bernstein_clear(&k, ExactMargin::new(&g).with_segment(segment_error(&seg)))
+            };
+            if cleared {
                 skipped += 1;
+                assert_eq!(slow, None, "case {case}: early out skipped a hit: {corners:?} {seg:?}");
+            }
+            assert_eq!(fast, slow, "case {case}");
+            assert_eq!(fast.is_some(), truth.is_some(), "case {case}: {corners:?} {seg:?}");
+            if let (Some(f), Some(t)) = (fast, truth) {
+                hits += 1;
+                let (tn, tf) = (f64::from(seg.t_near), f64::from(seg.t_far));
+                let cells = (f - t).abs() * (tf - tn) * f64::from(seg.dir.length());
+                assert!(cells < 1e-6, "case {case}: {f} vs {t} ({cells} cells)");
             }
         }
+        assert!(hits > 10_000, "{hits} hits of {total}");
+        // Most segments without a crossing are cleared by the f32 early out.
         assert!(
-            skipped * 5 > total,
-            "early out fired on {skipped} of {total}"
+            skipped * 10 > (total - hits) * 7,
+            "early out fired on {skipped} of {} segments without a hit",
+            total - hits
         );
     }
 

@@ -202,19 +202,69 @@ impl CellSegment {
         (p0, dp)
     }
 
-    /// `f64` twin of [`CellSegment::local_f32`] from the same `f32` inputs.
-    pub fn local_f64(&self) -> ([f64; 3], [f64; 3]) {
+    /// The `f64` segment inside the cell from the same `f32` ray and cell bounds:
+    /// `(p0, dp, t0, t1)`, cell-local entry point and displacement over `[t0, t1]`.
+    ///
+    /// Each end that the `f32` slab test took from a cell face is recomputed exactly (in
+    /// `f64`, from the same face); an end that came from the caller's interval is kept. The
+    /// `f32` ends are rounded to a few ulps of `t` (about 6e-5 cells for a ray from 700 cells
+    /// away), so the point `origin + dir·t_near` can lie outside the cell; evaluating the
+    /// cell's trilinear interpolant there extrapolates it, which can invent a crossing that
+    /// the continuous field does not have (a false hit of the reference that showed up as a
+    /// "far hit" of the exact method at 1024², docs/accuracy.md). The exact ends make
+    /// consecutive cells tile the ray in `f64` too.
+    pub fn local_f64(&self) -> ([f64; 3], [f64; 3], f64, f64) {
         let (o, d, lo, hi) = (
             self.origin.as_dvec3(),
             self.dir.as_dvec3(),
             self.lo.as_dvec3(),
             self.hi.as_dvec3(),
         );
-        let (tn, tf) = (f64::from(self.t_near), f64::from(self.t_far));
+        // The f32 slab's own face distances (frame::slab), to tell which ends were faces.
+        let (mut in32, mut out32) = (f32::NEG_INFINITY, f32::INFINITY);
+        let (mut in64, mut out64) = (f64::NEG_INFINITY, f64::INFINITY);
+        for a in 0..3 {
+            if self.dir[a] == 0.0 {
+                continue;
+            }
+            let inv = self.inv_dir[a];
+            let (ta, tb) = (
+                (self.lo[a] - self.origin[a]) * inv,
+                (self.hi[a] - self.origin[a]) * inv,
+            );
+            let (ua, ub) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+            let ((n, f), (n64, f64_)) = if d[a] > 0.0 {
+                ((ta, tb), (ua, ub))
+            } else {
+                ((tb, ta), (ub, ua))
+            };
+            in32 = in32.max(n);
+            out32 = out32.min(f);
+            in64 = in64.max(n64);
+            out64 = out64.min(f64_);
+        }
+        let t0 = if self.t_near == in32 {
+            in64
+        } else {
+            f64::from(self.t_near)
+        };
+        let t1 = if self.t_far == out32 {
+            out64
+        } else {
+            f64::from(self.t_far)
+        };
+        let t1 = t1.max(t0);
         let w = hi - lo;
-        let p0 = ((o - lo) + d * tn) / w;
-        let dp = d * (tf - tn) / w;
-        (p0.to_array(), dp.to_array())
+        let p0 = ((o - lo) + d * t0) / w;
+        let dp = d * (t1 - t0) / w;
+        (p0.to_array(), dp.to_array(), t0, t1)
+    }
+
+    /// The position on the `f32` segment `[t_near, t_far]` of ray parameter `t` (for roots
+    /// found on [`CellSegment::local_f64`]'s segment); 0 for a degenerate segment.
+    pub fn s_of_t(&self, t: f64) -> f64 {
+        let (tn, tf) = (f64::from(self.t_near), f64::from(self.t_far));
+        if tf > tn { (t - tn) / (tf - tn) } else { 0.0 }
     }
 
     /// The ray parameter of segment position `s`.
