@@ -62,6 +62,32 @@ fn exact_intersector_has_no_missed_or_false_hits_on_the_extreme_suite() {
     assert!(linear_missed > 0);
 }
 
+/// The limits of f32 (near misses by 1e-5…1e-7 of the range, rays grazing iso-valued
+/// samples): the f32 methods cannot resolve them, the exact method's f64 path must agree
+/// with the reference on every ray.
+#[test]
+fn exact_intersector_resolves_the_limits_of_f32() {
+    use volume_core::intersect::accuracy::{limit_cases, run_cases};
+    let results = run_cases(&limit_cases(), &[Intersector::Exact, Intersector::Linear]);
+    let mut linear_wrong = 0;
+    for (name, reports) in &results {
+        let exact = &reports[0];
+        assert!(exact.reference_hits > 50, "{name}: {exact:?}");
+        assert_eq!(
+            (
+                exact.missed,
+                exact.false_hits,
+                exact.far_hits,
+                exact.wrong_surface
+            ),
+            (0, 0, 0, 0),
+            "{name}: {exact:?}"
+        );
+        linear_wrong += reports[1].missed + reports[1].false_hits;
+    }
+    assert!(linear_wrong > 0, "the cases are beyond the f32 methods");
+}
+
 /// The per-ray halves of `compare` give the same report, and every ray's outcome matches
 /// the two traces.
 #[test]
