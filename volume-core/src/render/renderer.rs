@@ -22,8 +22,10 @@
 //! back; an opaque hit (or the layer limit) ends the ray, a transparent one re-shoots the
 //! same ray with the minimum distance just past the hit (thesis seed 004 §8.6, "transparent
 //! depth peeling": the packet is re-used with a per-ray minimum distance). A miss moves the
-//! ray to its next kept interval. Shadow rays ([`IsoScene::occluded_prepared`]) are cast one by
-//! one. The isovalues are prepared once per call ([`IsoScene::prepare`]).
+//! ray to its next kept interval. A round's shadow rays (one per lit hit and kept clip
+//! interval) are traced together as one packet after its hits are found (they share the
+//! light's direction, or aim at one point light: coherent), then the hits are shaded. The
+//! isovalues are prepared once per call ([`IsoScene::prepare`]).
 //!
 //! Statistics and shadows are compile-time parameters, so when they are off their code is not
 //! in the loop at all. Per-tile buffers live in a per-thread scratch that is reused: nothing
@@ -176,6 +178,29 @@ struct Scratch {
     t_min: Vec<f32>,
     t_max: Vec<f32>,
     hits: Vec<Option<Hit>>,
+    /// The round's hits to shade, and their shadow rays (one per kept interval) as a packet.
+    shade: Vec<PendingShade>,
+    shadow_rays: Vec<Ray>,
+    shadow_t_min: Vec<f32>,
+    shadow_t_max: Vec<f32>,
+    /// Index into `shade` of each shadow ray.
+    shadow_of: Vec<u32>,
+    shadow_hits: Vec<Option<Hit>>,
+}
+
+/// A hit of the current round, waiting for its shadow rays before it is shaded.
+#[derive(Debug, Clone, Copy)]
+struct PendingShade {
+    /// Index into the round's packet.
+    k: u32,
+    /// Index into the settings' surfaces.
+    surface: u32,
+    t: f32,
+    /// Normal facing the ray, and the direction to the light.
+    normal: Vec3,
+    to_light: Vec3,
+    /// 1 when lit, 0 in shadow.
+    lit: f32,
 }
 
 /// Statistics and ray counts of a part of the frame.
@@ -456,6 +481,13 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             }
         }
         let mut live = 0usize;
+        sc.shade.clear();
+        sc.shadow_rays.clear();
+        sc.shadow_t_min.clear();
+        sc.shadow_t_max.clear();
+        sc.shadow_of.clear();
+        // Hits: their surface and shading geometry; shadow rays are queued, to be traced
+        // together as one packet (parallel for a directional light, coherent for a point).
         for k in 0..n {
             let idx = sc.active[k] as usize;
             let st = &mut sc.states[idx];
@@ -469,28 +501,95 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 }
                 continue;
             };
-            let Some(surface) = ctx
-                .surface_of
-                .get(hit.surface as usize)
-                .map(|&i| &settings.surfaces[i])
-            else {
+            let Some(&surface) = ctx.surface_of.get(hit.surface as usize) else {
                 // A scene reporting a surface we did not ask for: stop, do not guess.
                 st.done = true;
                 continue;
             };
-            if st.layers == 0 {
-                st.depth = hit.t;
+            let ray = &sc.rays[k];
+            let p = ray.at(hit.t);
+            let normal = Shader::facing(hit.normal, ray.dir);
+            let (to_light, light_dist) = ctx.shader.light_dir(p, ray.dir);
+            let owner = sc.shade.len() as u32;
+            sc.shade.push(PendingShade {
+                k: k as u32,
+                surface: surface as u32,
+                t: hit.t,
+                normal,
+                to_light,
+                lit: 1.0,
+            });
+            if SHADOWS && Shader::lambert(normal, to_light) > 0.0 {
+                tally.rays.shadow += 1;
+                let shadow = Ray::new(p + normal * ctx.shadow_eps, to_light);
+                let range = ctx
+                    .bounds
+                    .intersect(&shadow, ctx.shadow_eps, light_dist)
+                    .map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
+                kept_intervals(
+                    &shadow,
+                    range,
+                    &settings.clips,
+                    &mut sc.clip_out,
+                    &mut sc.clip_tmp,
+                );
+                for iv in &sc.clip_out {
+                    sc.shadow_rays.push(shadow);
+                    sc.shadow_t_min.push(iv.lo);
+                    sc.shadow_t_max.push(iv.hi);
+                    sc.shadow_of.push(owner);
+                }
             }
-            let rgb = shade_hit::<S, St, SHADOWS>(
-                scene,
-                ctx,
-                &sc.rays[k],
-                &hit,
+        }
+        if SHADOWS && !sc.shadow_rays.is_empty() {
+            let m = sc.shadow_rays.len();
+            if settings.packets {
+                sc.shadow_hits.clear();
+                sc.shadow_hits.resize(m, None);
+                scene.first_hit_packet_prepared(
+                    &sc.shadow_rays,
+                    &sc.shadow_t_min,
+                    &sc.shadow_t_max,
+                    &ctx.isos,
+                    &mut sc.shadow_hits,
+                    &mut tally.stats,
+                );
+                for (h, &owner) in sc.shadow_hits.iter().zip(&sc.shadow_of) {
+                    if h.is_some() {
+                        sc.shade[owner as usize].lit = 0.0;
+                    }
+                }
+            } else {
+                for i in 0..m {
+                    let owner = sc.shadow_of[i] as usize;
+                    if sc.shade[owner].lit > 0.0
+                        && scene.occluded_prepared(
+                            &sc.shadow_rays[i],
+                            sc.shadow_t_min[i],
+                            sc.shadow_t_max[i],
+                            &ctx.isos,
+                            &mut tally.stats,
+                        )
+                    {
+                        sc.shade[owner].lit = 0.0;
+                    }
+                }
+            }
+        }
+        // Shade and composite front to back.
+        for ps in &sc.shade {
+            let k = ps.k as usize;
+            let st = &mut sc.states[sc.active[k] as usize];
+            let surface = &settings.surfaces[ps.surface as usize];
+            if st.layers == 0 {
+                st.depth = ps.t;
+            }
+            let rgb = ctx.shader.shade(
                 Vec3::from(surface.color),
-                &mut tally.stats,
-                &mut tally.rays,
-                &mut sc.clip_out,
-                &mut sc.clip_tmp,
+                ps.normal,
+                sc.rays[k].dir,
+                ps.to_light,
+                ps.lit,
             );
             let alpha = surface.opacity.clamp(0.0, 1.0);
             st.color += rgb * (st.transmittance * alpha);
@@ -499,7 +598,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             if st.transmittance <= OPAQUE_TRANSMITTANCE || st.layers >= ctx.max_layers {
                 st.done = true;
             } else {
-                st.t_from = hit.t + ctx.peel_eps + hit.t.abs() * 1e-6;
+                st.t_from = ps.t + ctx.peel_eps + ps.t.abs() * 1e-6;
                 live += 1;
             }
         }
@@ -590,42 +689,6 @@ fn next_round(sc: &mut Scratch, rays: &mut RayCounts) {
         sc.t_min.push(st.t_from);
         sc.t_max.push(sc.intervals[st.iv as usize].hi);
     }
-}
-
-/// Shades one hit, casting a shadow ray when `SHADOWS`.
-#[inline]
-fn shade_hit<S: IsoScene, St: Stats, const SHADOWS: bool>(
-    scene: &S,
-    ctx: &Ctx<'_, S::Isovalues>,
-    ray: &Ray,
-    hit: &Hit,
-    color: Vec3,
-    stats: &mut St,
-    rays: &mut RayCounts,
-    clip_out: &mut Vec<Interval>,
-    clip_tmp: &mut Vec<Interval>,
-) -> Vec3 {
-    let p = ray.at(hit.t);
-    let n = Shader::facing(hit.normal, ray.dir);
-    let (to_light, light_dist) = ctx.shader.light_dir(p, ray.dir);
-    let mut lit = 1.0;
-    if SHADOWS && Shader::lambert(n, to_light) > 0.0 {
-        rays.shadow += 1;
-        let origin = p + n * ctx.shadow_eps;
-        let shadow = Ray::new(origin, to_light);
-        let range = ctx
-            .bounds
-            .intersect(&shadow, ctx.shadow_eps, light_dist)
-            .map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
-        kept_intervals(&shadow, range, &ctx.settings.clips, clip_out, clip_tmp);
-        if clip_out
-            .iter()
-            .any(|iv| scene.occluded_prepared(&shadow, iv.lo, iv.hi, &ctx.isos, stats))
-        {
-            lit = 0.0;
-        }
-    }
-    ctx.shader.shade(color, n, ray.dir, to_light, lit)
 }
 
 #[cfg(test)]
