@@ -101,29 +101,52 @@ pub fn sample_field<F>(
 where
     F: Fn(DVec3) -> f64 + Sync,
 {
+    let positions = grid.clone();
+    sample_indexed(
+        grid,
+        voxel_type,
+        map,
+        move |[i, j, k]| field(positions.grid_position(i, j, k)),
+        on_slice,
+    )
+}
+
+/// [`sample_field`] for a field given per sample index `[i, j, k]` (e.g. values computed
+/// beforehand and post-processed).
+pub fn sample_indexed<F>(
+    grid: Grid,
+    voxel_type: VoxelType,
+    map: ValueMap,
+    field: F,
+    on_slice: &(dyn Fn() + Sync),
+) -> Result<RectilinearVolume, GenerateError>
+where
+    F: Fn([usize; 3]) -> f64 + Sync,
+{
+    let dims = grid.dims();
     let data: VoxelData = match voxel_type {
-        VoxelType::U8 => fill::<u8, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::I8 => fill::<i8, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::U16 => fill::<u16, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::I16 => fill::<i16, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::U32 => fill::<u32, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::I32 => fill::<i32, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::F32 => fill::<f32, _>(&grid, map, &field, on_slice)?.into(),
-        VoxelType::F64 => fill::<f64, _>(&grid, map, &field, on_slice)?.into(),
+        VoxelType::U8 => fill::<u8, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::I8 => fill::<i8, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::U16 => fill::<u16, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::I16 => fill::<i16, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::U32 => fill::<u32, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::I32 => fill::<i32, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::F32 => fill::<f32, _>(dims, map, &field, on_slice)?.into(),
+        VoxelType::F64 => fill::<f64, _>(dims, map, &field, on_slice)?.into(),
     };
     Ok(RectilinearVolume::new(grid, data)?)
 }
 
 fn fill<T: Voxel, F>(
-    grid: &Grid,
+    dims: [usize; 3],
     map: ValueMap,
     field: &F,
     on_slice: &(dyn Fn() + Sync),
 ) -> Result<Vec<T>, GenerateError>
 where
-    F: Fn(DVec3) -> f64 + Sync,
+    F: Fn([usize; 3]) -> f64 + Sync,
 {
-    let count = grid.voxel_count();
+    let count = dims.iter().product::<usize>();
     let bytes = count.saturating_mul(size_of::<T>());
     let mut voxels: Vec<T> = Vec::new();
     // A clear error instead of an abort when the requested size does not fit in memory.
@@ -131,15 +154,14 @@ where
         .try_reserve_exact(count)
         .map_err(|_| GenerateError::OutOfMemory { bytes })?;
     voxels.resize(count, T::default());
-    let [nx, ny, _] = grid.dims();
+    let [nx, ny, _] = dims;
     voxels
         .par_chunks_mut(nx * ny)
         .enumerate()
         .for_each(|(k, slice)| {
             for j in 0..ny {
                 for i in 0..nx {
-                    let p = grid.grid_position(i, j, k);
-                    slice[i + nx * j] = T::from_f64(map.to_stored(field(p)));
+                    slice[i + nx * j] = T::from_f64(map.to_stored(field([i, j, k])));
                 }
             }
             on_slice();

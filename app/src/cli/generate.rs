@@ -96,6 +96,40 @@ pub struct Args {
     /// Replace existing output files (never an input file).
     #[arg(long)]
     pub force: bool,
+    /// Phantom: white Gaussian noise of this standard deviation, in HU (real CT: 10–30).
+    #[arg(long, value_name = "HU")]
+    pub noise: Option<f64>,
+    /// Phantom: partial-volume blur, a Gaussian of this standard deviation in mm (real CT:
+    /// about 0.5–1).
+    #[arg(long, value_name = "MM")]
+    pub blur: Option<f64>,
+    /// Phantom: add a scanner table (couch and foam pad) under the head.
+    #[arg(long)]
+    pub table: bool,
+    /// Phantom: seed of the noise.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+}
+
+impl Args {
+    /// The phantom's options from `--noise`, `--blur`, `--table` and `--seed`.
+    fn phantom_options(&self) -> anyhow::Result<data_samples::phantom::PhantomOptions> {
+        let check = |flag: &str, v: Option<f64>| -> anyhow::Result<f64> {
+            match v {
+                Some(x) if !(x.is_finite() && x >= 0.0) => {
+                    bail!("{flag} {x}: must be a finite number ≥ 0")
+                }
+                Some(x) => Ok(x),
+                None => Ok(0.0),
+            }
+        };
+        Ok(data_samples::phantom::PhantomOptions {
+            noise_hu: check("--noise", self.noise)?,
+            blur_mm: check("--blur", self.blur)?,
+            table: self.table,
+            seed: self.seed,
+        })
+    }
 }
 
 /// `--size`: one size for all axes (generator-specific aspect) or explicit dims.
@@ -373,6 +407,10 @@ pub fn generate(args: &Args) -> anyhow::Result<Generated> {
     if args.tets.is_some() {
         bail!("--tets applies to the mesh generators (tet-ball, tet-shell, tet-torus)");
     }
+    let phantom = args.phantom_options()?;
+    if g != Generator::Phantom && !phantom.is_smooth() {
+        bail!("--noise, --blur and --table apply to the phantom, not {g}");
+    }
     let dims = match args.size {
         None => g.default_dims(),
         Some(Size::Cube(n)) => g.dims_for_size(n),
@@ -415,14 +453,17 @@ pub fn generate(args: &Args) -> anyhow::Result<Generated> {
 
     let progress = Progress::bar((dims[2] * steps) as u64, format!("generating {g}"));
     for (step, file) in files.iter().enumerate() {
-        let volume: RectilinearVolume = g
-            .generate_step(dims, voxel_type, step, steps, &progress.ticker())
-            .with_context(|| {
-                format!(
-                    "generating {g} {}x{}x{} {voxel_type}",
-                    dims[0], dims[1], dims[2]
-                )
-            })?;
+        let volume: RectilinearVolume = if phantom.is_smooth() {
+            g.generate_step(dims, voxel_type, step, steps, &progress.ticker())
+        } else {
+            data_samples::phantom::generate_with(dims, voxel_type, &phantom, &progress.ticker())
+        }
+        .with_context(|| {
+            format!(
+                "generating {g} {}x{}x{} {voxel_type}",
+                dims[0], dims[1], dims[2]
+            )
+        })?;
         progress.set_message(format!("writing {}", file.display()));
         write_nrrd(file, &volume, args.encoding.into(), replace)?;
         progress.set_message(format!("generating {g}"));
