@@ -42,6 +42,10 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
     let dir = tempfile::tempdir().unwrap();
     let md_path = dir.path().join("docs").join("accuracy.md");
     let images = dir.path().join("docs").join("img");
+    let torus = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data-samples/samples/torus32_u8.nrrd")
+        .canonicalize()
+        .unwrap();
     ok(&[
         "accuracy",
         "--quick",
@@ -51,6 +55,8 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         s(&md_path),
         "--images",
         s(&images),
+        "--volume",
+        &format!("{}:40,100.5", torus.display()),
     ]);
     let md = std::fs::read_to_string(&md_path).unwrap();
     let json: serde_json::Value =
@@ -63,7 +69,12 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
 
     // Every dataset table has every intersector, with images that exist.
     let datasets = json["datasets"].as_array().unwrap();
-    assert_eq!(datasets.len(), 5, "ML two sizes × f32/u8, and the phantom");
+    assert_eq!(
+        datasets.len(),
+        7,
+        "ML two sizes × f32/u8, the phantom smooth and noisy, and the --volume file"
+    );
+    assert_eq!(datasets[6]["isovalues"], serde_json::json!([40.0, 100.5]));
     for d in datasets {
         let name = d["name"].as_str().unwrap();
         let sec = section(&md, name);
@@ -92,6 +103,11 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
                 .all(|r| r["reference_hits"] == rows[0]["reference_hits"])
         );
         assert!(rows[0]["reference_hits"].as_u64().unwrap() > 100, "{name}");
+        // Exact on every pixel: no missed, false or far hits against the reference.
+        let exact = rows.iter().find(|r| r["intersector"] == "exact").unwrap();
+        for field in ["missed", "false_hits", "far_hits"] {
+            assert_eq!(exact[field].as_u64(), Some(0), "{name}: exact {field}");
+        }
     }
 
     // Extreme suite: recompute the reference and the exact intersector per ray here.

@@ -1,11 +1,12 @@
 //! `isoscope accuracy [-o docs/accuracy.md] [--images docs/images/accuracy] [--json FILE]
-//! [--size WxH] [--frames N] [--threads T] [--quick]`
+//! [--size WxH] [--frames N] [--threads T] [--volume FILE:V[,V...]]... [--quick]`
 //!
 //! Writes the speed/accuracy report of the five cell intersectors (thesis seed 004 §7.2.2)
 //! as Markdown, with difference images and a JSON twin:
-//! - on Marschner–Lobb 128³ and 256³ (`f32` and `u8`) and the CT-like phantom: Mrays/s of
-//!   full frames (kd-tree packets, shading included; [`super::bench::time_config`]) and, over
-//!   every pixel's primary ray, mean/max |Δt| against the `f64` reference in cell units,
+//! - on Marschner–Lobb 128³ and 256³ (`f32` and `u8`), the CT-like phantom (smooth, and with
+//!   table, blur and noise) and any `--volume` files (real data): Mrays/s of full frames
+//!   (kd-tree packets, shading included; [`super::bench::time_config`]) and, over every
+//!   pixel's primary ray (1024² by default), mean/max |Δt| against the `f64` reference in cell units,
 //!   % missed and % false hits ([`volume_core::intersect::accuracy::score`]); one PNG heat map
 //!   of |Δt| per pixel and intersector, with missed, false and wrong-surface pixels marked;
 //! - on the extreme suite ([`volume_core::intersect::accuracy::extreme_suite`]): totals per
@@ -20,6 +21,7 @@ use std::sync::atomic::AtomicBool;
 
 use anyhow::{Context as _, bail};
 use data_samples::Generator;
+use data_samples::phantom::PhantomOptions;
 use formats::output::Replace;
 use serde::Serialize;
 use volume_core::grid::AnyGridScene;
@@ -54,10 +56,14 @@ pub struct Args {
     /// Replace existing report and image files (a rerun that updates the docs).
     #[arg(long)]
     pub force: bool,
-    /// Image size of the datasets' camera (every pixel is scored). Default 256x256 (48x48
+    /// Image size of the datasets' camera (every pixel is scored). Default 1024x1024 (48x48
     /// with --quick).
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     pub size: Option<[u32; 2]>,
+    /// Also score a volume file (real data: an MRI, a CT), at these isovalues (physical
+    /// units): `FILE:V[,V...]`. Repeatable.
+    #[arg(long = "volume", value_name = "FILE:V[,V...]", value_parser = parse_volume_spec)]
+    pub volumes: Vec<VolumeSpec>,
     /// Timed frames per intersector (after one warm-up); the median is reported.
     /// Default 3 (1 with --quick).
     #[arg(long, value_name = "N")]
@@ -155,17 +161,102 @@ pub struct AccuracyDoc {
     pub limits: Vec<SuiteCase>,
 }
 
-/// A dataset of the report: generator, dims, type and isovalues (stored units).
+/// `--volume FILE:V[,V...]`: a volume file and its isovalues.
+#[derive(Debug, Clone)]
+pub struct VolumeSpec {
+    pub path: PathBuf,
+    pub isovalues: Vec<f32>,
+}
+
+fn parse_volume_spec(s: &str) -> Result<VolumeSpec, String> {
+    let (path, values) = s
+        .rsplit_once(':')
+        .ok_or_else(|| format!("{s:?}: expected FILE:V[,V...]"))?;
+    let isovalues = values
+        .split(',')
+        .map(|v| {
+            v.trim()
+                .parse::<f32>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("{s:?}: {v:?} is not a finite isovalue"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    if path.is_empty() {
+        return Err(format!("{s:?}: no file name"));
+    }
+    Ok(VolumeSpec {
+        path: PathBuf::from(path),
+        isovalues,
+    })
+}
+
+/// Where a dataset's volume comes from.
+enum Source {
+    /// A generator of `data-samples` (the phantom with its realism options).
+    Generated {
+        generator: Generator,
+        dims: [usize; 3],
+        voxel_type: VoxelType,
+        phantom: PhantomOptions,
+    },
+    /// A file (`--volume`).
+    File(PathBuf),
+}
+
+/// A dataset of the report: its volume and isovalues (physical units).
 struct DatasetSpec {
     name: String,
     slug: String,
-    generator: Generator,
-    dims: [usize; 3],
-    voxel_type: VoxelType,
+    source: Source,
     isovalues: Vec<f32>,
 }
 
-fn dataset_specs(quick: bool) -> Vec<DatasetSpec> {
+impl DatasetSpec {
+    fn load(&self) -> anyhow::Result<RectilinearVolume> {
+        match &self.source {
+            Source::Generated {
+                generator,
+                dims,
+                voxel_type,
+                phantom,
+            } => if phantom.is_smooth() {
+                generator.generate(*dims, *voxel_type)
+            } else {
+                data_samples::phantom::generate_with(*dims, *voxel_type, phantom, &|| {})
+            }
+            .with_context(|| format!("generating {}", self.name)),
+            Source::File(path) => Ok(formats::open(path, &formats::OpenOptions::default())?
+                .first_volume()
+                .clone()),
+        }
+    }
+}
+
+/// A short name for file names: the file stem's letters and digits.
+fn slug_of(path: &Path) -> String {
+    let stem = path.file_name().map_or_else(String::new, |n| {
+        let n = n.to_string_lossy();
+        n.split('.').next().unwrap_or_default().to_string()
+    });
+    let slug: String = stem
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() {
+                c.to_ascii_lowercase()
+            } else {
+                '-'
+            }
+        })
+        .collect();
+    if slug.is_empty() {
+        "volume".into()
+    } else {
+        slug
+    }
+}
+
+fn dataset_specs(quick: bool, volumes: &[VolumeSpec]) -> Vec<DatasetSpec> {
     let ml_sizes: &[usize] = if quick { &[24, 32] } else { &[128, 256] };
     let mut specs = Vec::new();
     for &n in ml_sizes {
@@ -177,9 +268,12 @@ fn dataset_specs(quick: bool) -> Vec<DatasetSpec> {
             specs.push(DatasetSpec {
                 name: format!("Marschner–Lobb {n}³ {}", t.name()),
                 slug: format!("ml{n}-{}", t.name()),
-                generator: g,
-                dims: [n; 3],
-                voxel_type: t,
+                source: Source::Generated {
+                    generator: g,
+                    dims: [n; 3],
+                    voxel_type: t,
+                    phantom: PhantomOptions::default(),
+                },
                 isovalues: vec![iso],
             });
         }
@@ -191,24 +285,49 @@ fn dataset_specs(quick: bool) -> Vec<DatasetSpec> {
         g.default_dims()
     };
     let t = g.default_voxel_type();
+    let isovalues: Vec<f32> = g
+        .suggested_isovalues()
+        .iter()
+        .map(|&v| g.value_map(t).to_stored(v) as f32)
+        .collect();
+    let dims_name = format!("{}×{}×{} {}", dims[0], dims[1], dims[2], t.name());
     specs.push(DatasetSpec {
-        name: format!(
-            "CT-like phantom {}×{}×{} {} (skin and bone)",
-            dims[0],
-            dims[1],
-            dims[2],
-            t.name()
-        ),
+        name: format!("CT-like phantom {dims_name} (skin and bone)"),
         slug: "phantom".into(),
-        generator: g,
-        dims,
-        voxel_type: t,
-        isovalues: g
-            .suggested_isovalues()
-            .iter()
-            .map(|&v| g.value_map(t).to_stored(v) as f32)
-            .collect(),
+        source: Source::Generated {
+            generator: g,
+            dims,
+            voxel_type: t,
+            phantom: PhantomOptions::default(),
+        },
+        isovalues: isovalues.clone(),
     });
+    // Real CT's roughness: table, partial-volume blur and noise (`generate phantom
+    // --noise 20 --blur 0.7 --table`).
+    specs.push(DatasetSpec {
+        name: format!("CT-like phantom {dims_name} with table, blur 0.7 mm and noise 20 HU"),
+        slug: "phantom-noisy".into(),
+        source: Source::Generated {
+            generator: g,
+            dims,
+            voxel_type: t,
+            phantom: PhantomOptions {
+                noise_hu: 20.0,
+                blur_mm: 0.7,
+                table: true,
+                seed: 1,
+            },
+        },
+        isovalues,
+    });
+    for v in volumes {
+        specs.push(DatasetSpec {
+            name: v.path.display().to_string(),
+            slug: slug_of(&v.path),
+            source: Source::File(v.path.clone()),
+            isovalues: v.isovalues.clone(),
+        });
+    }
     specs
 }
 
@@ -348,7 +467,7 @@ fn output_paths(args: &Args) -> Vec<PathBuf> {
         json_path(args),
         args.images.join("legend.png"),
     ];
-    for spec in dataset_specs(args.quick) {
+    for spec in dataset_specs(args.quick, &args.volumes) {
         paths.push(args.images.join(format!("{}-render.png", spec.slug)));
         for method in Intersector::ALL {
             if method != Intersector::Reference {
@@ -375,10 +494,8 @@ fn measure_dataset(
     replace: Replace,
 ) -> anyhow::Result<DatasetResult> {
     let volume: RectilinearVolume = {
-        let _s = Progress::spinner(format!("generating {}", spec.name));
-        spec.generator
-            .generate(spec.dims, spec.voxel_type)
-            .with_context(|| format!("generating {}", spec.name))?
+        let _s = Progress::spinner(format!("loading {}", spec.name));
+        spec.load()?
     };
     let mut scene = {
         let _s = Progress::spinner("building the kd-tree");
@@ -441,8 +558,8 @@ fn measure_dataset(
     }
     Ok(DatasetResult {
         name: spec.name.clone(),
-        dims: spec.dims,
-        voxel_type: spec.voxel_type.name().to_string(),
+        dims: volume.dims(),
+        voxel_type: volume.data.voxel_type().name().to_string(),
         isovalues: spec.isovalues.clone(),
         width: size[0],
         height: size[1],
@@ -558,20 +675,18 @@ const METHOD_NOTES: &str = "\
   features), and its position error grows with the surface's curvature inside the cell.
 - **neubauer** (3 iterations): linear plus regula-falsi steps on the same bracket: the same
   misses, a much smaller position error.
-- **exact** (Listing 7.1, the default): the derivative's roots split the segment into
-  monotone pieces, so no sign change is missed; f32 regula falsi (Illinois) gives the
-  position, within a few f32 ulps of the cell parameter. An extremum within
-  64·ε·max|g| (≈ 4e-6 of the cell's value range) of the isovalue counts as a touch, so
-  tangent rays hit; two roots closer than about 1e-3 cell are reported at the extremum
-  between them (|Δt| up to half their distance), and near misses inside that band become
-  hits (see the limits table). Crossings at a cell face: the entry and exit points are
-  each formed from the ray and the cell box, with the coordinate across the shared face set
-  to exactly 0 or 1, so both cells see the same point there and one of them finds the
-  crossing. (Before, the exit was entry + direction·Δt: with the f32 cancellation in the
-  entry point, ~ε·700 cells for an orbit camera on 256³, the two cells disagreed by
-  ~1e-4 cell and crossings that close to a face were lost: the 2 + 1 far hits on
-  Marschner–Lobb 256³ of earlier reports; regression test in
-  `volume_core::intersect::accuracy`.)
+- **exact** (Listing 7.1, the default): exact on every ray by construction. A segment is
+  dismissed in f32 only when the convex hull of its cubic's Bernstein coefficients stays
+  farther from the isovalue than a rigorous bound on the f32 error against the f64 truth
+  (corner differences, segment ends, coefficients, evaluation); every other segment is
+  decided by the reference's own f64 procedure on the exact segment (the derivative's roots
+  split it into monotone pieces; the first piece whose ends differ in sign holds the first
+  crossing; a touch counts within the reference's rounding bound), then refined by f64
+  Illinois steps instead of bisection. So it finds exactly the reference's crossings:
+  0 missed, 0 false and 0 far hits on every dataset, at any resolution; |Δt| is the
+  refinement's residue. Earlier versions decided in f32 with a touching band of
+  64·ε·max|g|, which at 1024² turned a few near misses per million rays into hits
+  (regression tests in `volume_core::intersect::accuracy`).
 - **schwarze**: Cardano's formula in f32. Exact in exact arithmetic, but cancellation for
   nearly quadratic segments and clustered roots costs digits: large |Δt| on a few rays, and
   misses where rounding pushes a double root to a complex pair.
@@ -612,7 +727,7 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
         s,
         "Datasets: every pixel's primary ray of an orbit camera (azimuth 30°, elevation 20°, \
          40° field of view) is scored; **Mrays/s** is the median primary-ray throughput of \
-         full frames at that size (kd-tree, 8-wide packets, shading, all threads; \
+         full frames at that size (kd-tree, 16-ray packets, shading, all threads; \
          `isoscope bench`'s measurement), so it includes the traversal and shading every \
          method shares. Extreme suite: Mrays/s of the single-threaded one-ray-at-a-time \
          traversal over the suite's few thousand rays (noisy; a relative measure only).\n"
@@ -675,16 +790,16 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
         "\nPer case: `missed / false / far · max |Δt|` (cells) for each intersector.\n"
     );
     case_table(s, &doc.suite);
-    let _ = writeln!(s, "## Limits of f32 (outside the suite's requirement)\n");
+    let _ = writeln!(s, "## Limits of f32\n");
     let _ = writeln!(
         s,
         "Inputs whose answer is decided below f32 resolution \
          (`volume_core::intersect::accuracy::limit_cases`): rays along the saddle diagonals \
          with the isovalue a small gap below the saddle value (along even diagonals the field \
-         stays `gap` above the isovalue: a near miss, which the exact method's touching band \
-         of 64·ε·max|g| ≈ 4e-6 turns into a hit when the gap is inside it; along odd \
-         diagonals two roots 2·√gap apart), and random unit rays aimed at iso-valued samples \
-         (see above). Same format as the per-case table.\n"
+         stays `gap` above the isovalue: a near miss; along odd diagonals two roots 2·√gap \
+         apart), and random unit rays aimed at iso-valued samples (see above). The f32 \
+         methods cannot tell these apart; the exact method hands them to its f64 path. Same \
+         format as the per-case table.\n"
     );
     case_table(s, &doc.limits);
 }
@@ -729,7 +844,7 @@ pub fn format_markdown(doc: &AccuracyDoc, legend: &str) -> String {
         let _ = writeln!(s, "## {}\n", d.name);
         let _ = writeln!(
             s,
-            "{}×{}×{} {}, isovalue(s) {:?} (stored units), {}×{} rays.\n",
+            "{}×{}×{} {}, isovalue(s) {:?}, {}×{} rays (every pixel).\n",
             d.dims[0], d.dims[1], d.dims[2], d.voxel_type, d.isovalues, d.width, d.height
         );
         let _ = writeln!(
@@ -783,7 +898,7 @@ pub fn format_markdown(doc: &AccuracyDoc, legend: &str) -> String {
 fn measure(args: &Args, command: String) -> anyhow::Result<AccuracyDoc> {
     let size = args
         .size
-        .unwrap_or(if args.quick { [48, 48] } else { [256, 256] });
+        .unwrap_or(if args.quick { [48, 48] } else { [1024, 1024] });
     let frames = args.frames.unwrap_or(if args.quick { 1 } else { 3 });
     if frames == 0 {
         bail!("--frames must be at least 1");
@@ -805,7 +920,7 @@ fn measure(args: &Args, command: String) -> anyhow::Result<AccuracyDoc> {
         &Intersector::ALL,
     ));
     let mut datasets = Vec::new();
-    for spec in dataset_specs(args.quick) {
+    for spec in dataset_specs(args.quick, &args.volumes) {
         datasets.push(measure_dataset(
             &spec,
             size,
