@@ -87,6 +87,10 @@ pub struct Args {
     /// Skip the (slow) DDA baseline (volumes).
     #[arg(long)]
     pub skip_dda: bool,
+    /// Skip the one-ray-at-a-time kd-tree configuration (volumes): time only the packets the
+    /// renderer uses (e.g. for profiles and peer comparisons).
+    #[arg(long)]
+    pub skip_single: bool,
     /// Also render N frames that each change the isovalue (over the middle half of the value
     /// range) and compare them with the steady frames (volumes and meshes).
     #[arg(long, value_name = "N")]
@@ -540,16 +544,16 @@ fn measure_grid(args: &Args, s: &Setup) -> anyhow::Result<BenchReport> {
     let grid = s.scene.as_grid().context("not a volume")?;
     let mut report = base_report(args, s);
     let (camera, settings) = (&s.camera, &s.settings);
-    let mut configs = vec![
-        time_config(
-            "kdtree-packet",
-            grid.scene(),
-            false,
-            camera,
-            settings,
-            args.frames,
-        )?,
-        time_config(
+    let mut configs = vec![time_config(
+        "kdtree-packet",
+        grid.scene(),
+        false,
+        camera,
+        settings,
+        args.frames,
+    )?];
+    if !args.skip_single {
+        configs.push(time_config(
             "kdtree-single",
             grid.scene(),
             false,
@@ -559,8 +563,8 @@ fn measure_grid(args: &Args, s: &Setup) -> anyhow::Result<BenchReport> {
                 ..settings.clone()
             },
             args.frames,
-        )?,
-    ];
+        )?);
+    }
     if !args.skip_dda {
         let dda = time_config(
             "dda",
