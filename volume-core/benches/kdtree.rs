@@ -454,11 +454,34 @@ fn trace_summary() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(KdTreeConfig::default().unstored_levels);
-    let dims = [256, 256, 110];
-    let grid = Grid::uniform(dims, [0.0; 3], [0.9, 0.9, 1.5]).unwrap();
+    // KDBENCH_RAW=FILE:XxYxZ:ISO traces a raw little-endian i16 volume (spacing 1) at
+    // isovalue ISO instead of the CT-like one (real data, e.g. an MRI written as i16).
+    let raw = std::env::var("KDBENCH_RAW").ok().map(|spec| {
+        let parts: Vec<&str> = spec.split(':').collect();
+        assert_eq!(parts.len(), 3, "KDBENCH_RAW=FILE:XxYxZ:ISO");
+        let dims: Vec<usize> = parts[1].split('x').map(|x| x.parse().unwrap()).collect();
+        let dims = [dims[0], dims[1], dims[2]];
+        let bytes = std::fs::read(parts[0]).expect("KDBENCH_RAW file");
+        assert_eq!(bytes.len(), 2 * dims.iter().product::<usize>(), "file size");
+        let voxels: Vec<i16> = bytes
+            .chunks_exact(2)
+            .map(|b| i16::from_le_bytes([b[0], b[1]]))
+            .collect();
+        (dims, voxels, parts[2].parse::<f32>().unwrap())
+    });
+    let (dims, voxels, iso, spacing) = match raw {
+        Some((dims, v, iso)) => (dims, v, iso, [1.0; 3]),
+        None => (
+            [256, 256, 110],
+            ct_like([256, 256, 110]),
+            300.0,
+            [0.9, 0.9, 1.5],
+        ),
+    };
+    let grid = Grid::uniform(dims, [0.0; 3], spacing).unwrap();
     let ct = GridScene::new(
         &grid,
-        VoxelBuffer::from_vec(ct_like(dims)),
+        VoxelBuffer::from_vec(voxels),
         Intersector::Exact,
         KdTreeConfig {
             unstored_levels: unstored,
@@ -474,7 +497,7 @@ fn trace_summary() {
     let on = |m: &str| modes.split(',').any(|x| x.trim() == m);
     let cam = Camera::orbit(&ct.world_bounds(), 30.0, 20.0, 40.0);
     let tiles = frame_tiles(&ct, &cam, size);
-    let isos = [300.0f32];
+    let isos = [iso];
     let iso_set = IsoSet::<i16>::new(&isos);
     let pixels = f64::from(size) * f64::from(size);
     let n_rays: usize = tiles.iter().map(|t| t.rays.len()).sum();
