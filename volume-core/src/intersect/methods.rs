@@ -781,7 +781,8 @@ mod tests {
     fn random_segment(rnd: &mut impl FnMut() -> f32, lo: Vec3, dist: f32) -> Option<CellSegment> {
         use crate::intersect::{LocalRay, frame::slab};
         let target = lo + Vec3::new(rnd(), rnd(), rnd());
-        let dir = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize() * (1.0 + 100.0 * rnd());
+        let dir =
+            Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize() * (1.0 + 100.0 * rnd());
         let origin = target - dir.normalize() * dist;
         let ray = LocalRay::new(origin, dir);
         let hi = lo + Vec3::ONE;
@@ -834,10 +835,17 @@ mod tests {
             };
             if cleared {
                 skipped += 1;
-                assert_eq!(slow, None, "case {case}: early out skipped a hit: {corners:?} {seg:?}");
+                assert_eq!(
+                    slow, None,
+                    "case {case}: early out skipped a hit: {corners:?} {seg:?}"
+                );
             }
             assert_eq!(fast, slow, "case {case}");
-            assert_eq!(fast.is_some(), truth.is_some(), "case {case}: {corners:?} {seg:?}");
+            assert_eq!(
+                fast.is_some(),
+                truth.is_some(),
+                "case {case}: {corners:?} {seg:?}"
+            );
             if let (Some(f), Some(t)) = (fast, truth) {
                 hits += 1;
                 let (tn, tf) = (f64::from(seg.t_near), f64::from(seg.t_far));
