@@ -2586,7 +2586,7 @@ fn vtu_cases(c: &mut Corpus) -> std::io::Result<()> {
         (
             "compressor_unknown",
             Kind::BadStream,
-            z.replace_first("vtkZLibDataCompressor", "vtkLZ4DataCompressor"),
+            z.replace_first("vtkZLibDataCompressor", "vtkLZMADataCompressor"),
         ),
         (
             "points_nan",
