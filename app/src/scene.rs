@@ -1438,11 +1438,19 @@ mod tests {
         let (_, hi_label) = scene.value_range().unwrap();
         // `label` is the u8 copy of 1.5 × `temperature`.
         assert_eq!(hi_label, (hi * 1.5).floor());
-        assert!(scene.describe().contains("array \"label\""), "{}", scene.describe());
+        assert!(
+            scene.describe().contains("array \"label\""),
+            "{}",
+            scene.describe()
+        );
         let e = scene.data_mut().set_field("velocity").unwrap_err();
         assert!(e.to_string().contains("temperature"), "{e}");
         // A grid without named arrays has none to switch to.
-        let mha = open_scene(&image_data("metaimage/float_zlib.mha"), &SceneOptions::default()).unwrap();
+        let mha = open_scene(
+            &image_data("metaimage/float_zlib.mha"),
+            &SceneOptions::default(),
+        )
+        .unwrap();
         assert!(mha.data().field_names().is_empty());
     }
 

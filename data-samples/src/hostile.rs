@@ -3733,6 +3733,7 @@ const REFERENCED: &[(&str, &str)] = &[
     ("pvd_long_file_name", "sss"),
     ("tetgen_ele_missing", "t.ele"),
     ("mhd_missing_data_file", "gone.raw"),
+    ("mhd_pattern_missing_slice", "s2.raw"),
 ];
 
 #[cfg(test)]

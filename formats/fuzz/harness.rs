@@ -386,8 +386,7 @@ pub fn metaimage(data: &[u8]) -> Outcome {
                     written.push((*f).clone());
                 }
             }
-            std::fs::write(&path, &data[..header.header_len.min(data.len())])
-                .expect("write h.mhd");
+            std::fs::write(&path, &data[..header.header_len.min(data.len())]).expect("write h.mhd");
             path
         }
         None => {
@@ -430,8 +429,12 @@ pub fn vti(data: &[u8]) -> Outcome {
 /// `tiff`: a TIFF from memory through `formats::tiff::parse_tiff` (every page, the size and
 /// sample-type checks, ImageJ frames as steps).
 pub fn tiff(data: &[u8]) -> Outcome {
-    let d = formats::tiff::parse_tiff(Path::new("fuzz.tif"), data, &formats::OpenOptions::default())
-        .map_err(err)?;
+    let d = formats::tiff::parse_tiff(
+        Path::new("fuzz.tif"),
+        data,
+        &formats::OpenOptions::default(),
+    )
+    .map_err(err)?;
     check_dataset(&d);
     Ok(())
 }

@@ -109,7 +109,15 @@ pub struct OpenOptions {
 pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> {
     if !path.exists() && series::is_pattern(path) {
         let files = series::expand_pattern(path)?;
-        if tiff::is_tiff_path(&files[0]) && tiff::is_single_page(&files[0])? {
+        if tiff::is_slice_stack(&files)? {
+            refuse_unused(
+                &files[0],
+                &OpenOptions {
+                    spacing: None,
+                    ..options.clone()
+                },
+                false,
+            )?;
             for f in &files {
                 input::note_input(f);
             }
@@ -181,7 +189,14 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         return vtk_image::read(path, options.field.as_deref()).map(Dataset::Volume);
     }
     if tiff::is_tiff_path(path) {
-        refuse_unused(path, &OpenOptions { spacing: None, ..options.clone() }, false)?;
+        refuse_unused(
+            path,
+            &OpenOptions {
+                spacing: None,
+                ..options.clone()
+            },
+            false,
+        )?;
         return tiff::read_tiff(path, options);
     }
     if let Some(layout) = &options.raw {
@@ -210,7 +225,14 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         return nrrd::read_nrrd(path);
     }
     if n == 4 && (&magic == b"II*\0" || &magic == b"MM\0*" || &magic == b"II+\0") {
-        refuse_unused(path, &OpenOptions { spacing: None, ..options.clone() }, false)?;
+        refuse_unused(
+            path,
+            &OpenOptions {
+                spacing: None,
+                ..options.clone()
+            },
+            false,
+        )?;
         return tiff::read_tiff(path, options);
     }
     Err(FormatError::UnknownFormat {

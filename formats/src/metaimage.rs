@@ -57,11 +57,7 @@ pub enum DataFile {
     /// One file (relative to the header's folder unless absolute).
     File(String),
     /// A printf pattern: file `i` is `format(min + i·step)`, one per slice of the last axis.
-    Pattern {
-        format: String,
-        min: i64,
-        step: i64,
-    },
+    Pattern { format: String, min: i64, step: i64 },
     /// The files listed after the `ElementDataFile` line, each holding `file_dims` axes.
     List {
         file_dims: usize,
@@ -279,7 +275,10 @@ pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<MetaHeader, FormatError
             return Err(bad(
                 key,
                 line,
-                format!("{} numbers, expected {count} (NDims = {ndims})", values.len()),
+                format!(
+                    "{} numbers, expected {count} (NDims = {ndims})",
+                    values.len()
+                ),
             ));
         }
         if let Some(x) = values.iter().find(|x| !x.is_finite()) {
@@ -444,9 +443,8 @@ pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<MetaHeader, FormatError
             (Some(max), None) => ((max - min) / last).max(1),
             (None, None) => 1,
         };
-        crate::nrrd::header::check_printf(words[0]).map_err(|r| {
-            bad("ElementDataFile", data_line, format!("pattern: {r}"))
-        })?;
+        crate::nrrd::header::check_printf(words[0])
+            .map_err(|r| bad("ElementDataFile", data_line, format!("pattern: {r}")))?;
         if words.len() > 4 || step == 0 {
             return Err(bad(
                 "ElementDataFile",
@@ -632,8 +630,8 @@ fn plan(path: &Path, h: &MetaHeader) -> Result<(DataPlan, VolumeLayout, u64), Fo
         Some(m) => {
             let col = |k: usize| [m[k * nd], m[k * nd + 1], m[k * nd + 2]];
             if nd == 4 {
-                let mixed = (0..3).any(|k| m[k * nd + 3] != 0.0)
-                    || (0..3).any(|c| m[3 * nd + c] != 0.0);
+                let mixed =
+                    (0..3).any(|k| m[k * nd + 3] != 0.0) || (0..3).any(|c| m[3 * nd + c] != 0.0);
                 if mixed {
                     return Err(FormatError::Unsupported {
                         path: path.to_path_buf(),
@@ -753,7 +751,9 @@ fn check_compressed(
 ) -> Result<(), FormatError> {
     let mut available = 0u64;
     for f in files {
-        let len = std::fs::metadata(f).map_err(|e| FormatError::io(f, e))?.len();
+        let len = std::fs::metadata(f)
+            .map_err(|e| FormatError::io(f, e))?
+            .len();
         let here = len.saturating_sub(start);
         if let Some(n) = compressed_bytes
             && n > here

@@ -82,7 +82,9 @@ pub(crate) fn checked_dims(
         reason,
     };
     if dims.contains(&0) {
-        return Err(bad(format!("{dims:?}: every axis needs at least one sample")));
+        return Err(bad(format!(
+            "{dims:?}: every axis needs at least one sample"
+        )));
     }
     dims[0]
         .checked_mul(dims[1])

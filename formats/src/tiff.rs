@@ -152,9 +152,11 @@ impl Pages {
             DecodingResult::F32(v) => Pages::F32(v),
             DecodingResult::F64(v) => Pages::F64(v),
             DecodingResult::U64(_) | DecodingResult::I64(_) => {
-                return Err("64-bit integer samples are not supported (8 to 32-bit integers \
+                return Err(
+                    "64-bit integer samples are not supported (8 to 32-bit integers \
                             and floats are)"
-                    .into());
+                        .into(),
+                );
             }
         })
     }
@@ -238,19 +240,21 @@ struct Reader<'a> {
 /// the method is refused).
 fn max_decoded(method: CompressionMethod, compressed: u64) -> Option<u64> {
     let slack = 4096;
-    Some(match method {
-        CompressionMethod::None => compressed,
-        // A 12-bit LZW code (at least 9 bits in the stream) emits at most 4096 bytes.
-        CompressionMethod::LZW => compressed.saturating_mul(4096 * 8 / 9),
-        // Deflate: at most 1032 bytes per compressed byte.
-        CompressionMethod::Deflate | CompressionMethod::OldDeflate => {
-            compressed.saturating_mul(1032)
+    Some(
+        match method {
+            CompressionMethod::None => compressed,
+            // A 12-bit LZW code (at least 9 bits in the stream) emits at most 4096 bytes.
+            CompressionMethod::LZW => compressed.saturating_mul(4096 * 8 / 9),
+            // Deflate: at most 1032 bytes per compressed byte.
+            CompressionMethod::Deflate | CompressionMethod::OldDeflate => {
+                compressed.saturating_mul(1032)
+            }
+            // PackBits: a 2-byte run expands to at most 128 bytes.
+            CompressionMethod::PackBits => compressed.saturating_mul(64),
+            _ => return None,
         }
-        // PackBits: a 2-byte run expands to at most 128 bytes.
-        CompressionMethod::PackBits => compressed.saturating_mul(64),
-        _ => return None,
-    }
-    .saturating_add(slack))
+        .saturating_add(slack),
+    )
 }
 
 impl Reader<'_> {
@@ -337,8 +341,14 @@ impl Reader<'_> {
         let method = d
             .find_tag_unsigned::<u16>(Tag::Compression)
             .map_err(e)?
-            .map_or(CompressionMethod::None, CompressionMethod::from_u16_exhaustive);
-        let counts = match d.find_tag_unsigned_vec::<u64>(Tag::StripByteCounts).map_err(e)? {
+            .map_or(
+                CompressionMethod::None,
+                CompressionMethod::from_u16_exhaustive,
+            );
+        let counts = match d
+            .find_tag_unsigned_vec::<u64>(Tag::StripByteCounts)
+            .map_err(e)?
+        {
             Some(c) => c,
             None => d
                 .find_tag_unsigned_vec::<u64>(Tag::TileByteCounts)
@@ -358,9 +368,7 @@ impl Reader<'_> {
         let Some(most) = max_decoded(method, stored) else {
             return Err(self.err(
                 page,
-                format!(
-                    "compression {method:?} is not read (none, LZW, deflate and PackBits are)"
-                ),
+                format!("compression {method:?} is not read (none, LZW, deflate and PackBits are)"),
             ));
         };
         if page_bytes > most {
@@ -460,8 +468,17 @@ pub fn read_tiff(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
 }
 
 /// [`read_tiff`] on the file's bytes in memory (`path` only names it in errors): for fuzzing.
-pub fn parse_tiff(path: &Path, bytes: &[u8], options: &OpenOptions) -> Result<Dataset, FormatError> {
-    read_tiff_from(path, std::io::Cursor::new(bytes), bytes.len() as u64, options)
+pub fn parse_tiff(
+    path: &Path,
+    bytes: &[u8],
+    options: &OpenOptions,
+) -> Result<Dataset, FormatError> {
+    read_tiff_from(
+        path,
+        std::io::Cursor::new(bytes),
+        bytes.len() as u64,
+        options,
+    )
 }
 
 fn read_tiff_from<R: Read + Seek>(
@@ -538,24 +555,20 @@ fn read_tiff_from<R: Read + Seek>(
 
 /// Per axis: the recorded spacing, else the option's, else 1.
 fn axis_spacing(recorded: [Option<f64>; 3], options: &OpenOptions) -> [f64; 3] {
-    [0, 1, 2].map(|a| {
-        recorded[a]
-            .or(options.spacing.map(|s| s[a]))
-            .unwrap_or(1.0)
-    })
+    [0, 1, 2].map(|a| recorded[a].or(options.spacing.map(|s| s[a])).unwrap_or(1.0))
 }
 
 /// Reads numbered single-page TIFF files (in order) as the z slices of one volume.
-pub fn read_slices(files: &[PathBuf], options: &OpenOptions) -> Result<RectilinearVolume, FormatError> {
+pub fn read_slices(
+    files: &[PathBuf],
+    options: &OpenOptions,
+) -> Result<RectilinearVolume, FormatError> {
     let mut pages = None;
     let mut size = None;
     let mut recorded = [None; 3];
     for (i, path) in files.iter().enumerate() {
         let (reader, file_len) = open_file(path)?;
-        let r = Reader {
-            path,
-            file_len,
-        };
+        let r = Reader { path, file_len };
         let mut d = r.decoder(reader)?;
         if i == 0 {
             let imagej = imagej_of(&mut d);
@@ -628,6 +641,16 @@ impl StepLoader for FrameSteps {
             self.steps.len(),
             self.path.display()
         )
+    }
+}
+
+/// True if numbered `files` are the 2D slices of one volume: TIFF files whose first has
+/// one page ([`read_slices`] reads them); otherwise numbered files are a time series.
+/// Reads the first file's header only.
+pub fn is_slice_stack(files: &[PathBuf]) -> Result<bool, FormatError> {
+    match files.first() {
+        Some(first) if is_tiff_path(first) => is_single_page(first),
+        _ => Ok(false),
     }
 }
 

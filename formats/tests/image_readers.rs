@@ -42,7 +42,9 @@ fn close(a: f64, b: f64) -> bool {
 /// World position of voxel (i, j, k).
 fn world(v: &RectilinearVolume, i: usize, j: usize, k: usize) -> DVec3 {
     let p = v.grid.grid_position(i, j, k);
-    v.grid.world_from_grid().map_or(p, |m| m.transform_point3(p))
+    v.grid
+        .world_from_grid()
+        .map_or(p, |m| m.transform_point3(p))
 }
 
 fn options(t: &Value) -> OpenOptions {
@@ -63,7 +65,11 @@ fn check_volume(name: &str, v: &RectilinearVolume, t: &Value, samples: &Value, d
         .map(|d| d.as_u64().unwrap() as usize)
         .collect();
     assert_eq!(v.dims().to_vec(), dims, "{name}: dims");
-    assert_eq!(v.data.voxel_type().name(), dtype.as_str().unwrap(), "{name}");
+    assert_eq!(
+        v.data.voxel_type().name(),
+        dtype.as_str().unwrap(),
+        "{name}"
+    );
     for s in samples.as_array().unwrap() {
         let (i, j, k) = (
             s[0].as_u64().unwrap() as usize,
@@ -73,7 +79,8 @@ fn check_volume(name: &str, v: &RectilinearVolume, t: &Value, samples: &Value, d
         // serde_json parses decimals to within an ulp; integer voxels compare exactly.
         let (got, want) = (v.value_f64(i, j, k), f(&s[3]));
         assert!(
-            got == want || (v.data.voxel_type().is_float() && (got - want).abs() <= 1e-12 * want.abs()),
+            got == want
+                || (v.data.voxel_type().is_float() && (got - want).abs() <= 1e-12 * want.abs()),
             "{name}: voxel ({i},{j},{k}) is {got}, the library says {want}"
         );
     }
@@ -246,13 +253,19 @@ fn options_a_format_cannot_use_are_refused() {
         ..OpenOptions::default()
     };
     let e = formats::open(&data("metaimage").join("float_zlib.mha"), &o).unwrap_err();
-    assert!(matches!(&e, FormatError::Unsupported { field, .. } if field == "--field"), "{e}");
+    assert!(
+        matches!(&e, FormatError::Unsupported { field, .. } if field == "--field"),
+        "{e}"
+    );
     let o = OpenOptions {
         spacing: Some([1.0, 2.0, 3.0]),
         ..OpenOptions::default()
     };
     let e = formats::open(&data("vtk_image").join("ascii.vti"), &o).unwrap_err();
-    assert!(matches!(&e, FormatError::Unsupported { field, .. } if field == "--spacing"), "{e}");
+    assert!(
+        matches!(&e, FormatError::Unsupported { field, .. } if field == "--spacing"),
+        "{e}"
+    );
 }
 
 // ------------------------------------------------------------------ bad input
@@ -282,7 +295,9 @@ fn open_edited(
 fn replace_in(path: &Path, from: &str, to: &str) {
     let bytes = std::fs::read(path).unwrap();
     let text = String::from_utf8_lossy(&bytes);
-    let at = text.find(from).unwrap_or_else(|| panic!("{from} in {}", path.display()));
+    let at = text
+        .find(from)
+        .unwrap_or_else(|| panic!("{from} in {}", path.display()));
     let mut out = bytes[..at].to_vec();
     out.extend_from_slice(to.as_bytes());
     out.extend_from_slice(&bytes[at + from.len()..]);
@@ -316,77 +331,147 @@ fn bad_metaimage_files_are_clear_errors() {
     };
     // DimSize larger than the data: the raw file is too short.
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
-        replace_in(&d.join("oblique_i16.mha"), "DimSize = 10 8 6", "DimSize = 10 8 9")
+        replace_in(
+            &d.join("oblique_i16.mha"),
+            "DimSize = 10 8 6",
+            "DimSize = 10 8 9",
+        )
     });
     assert!(matches!(e, FormatError::TooShort { .. }), "{e}");
     // Truncated detached data.
-    let e = mi(&["sagittal_u8.mhd", "sagittal_u8.raw"], "sagittal_u8.mhd", &|d| {
-        truncate(&d.join("sagittal_u8.raw"), 100)
-    });
-    assert!(matches!(e, FormatError::TooShort { available: 100, .. }), "{e}");
+    let e = mi(
+        &["sagittal_u8.mhd", "sagittal_u8.raw"],
+        "sagittal_u8.mhd",
+        &|d| truncate(&d.join("sagittal_u8.raw"), 100),
+    );
+    assert!(
+        matches!(e, FormatError::TooShort { available: 100, .. }),
+        "{e}"
+    );
     // Compressed stream cut short, and garbage instead of zlib.
-    let e = mi(&["flipped_u16.mhd", "flipped_u16.zraw"], "flipped_u16.mhd", &|d| {
-        let p = d.join("flipped_u16.zraw");
-        let len = std::fs::metadata(&p).unwrap().len();
-        truncate(&p, len / 2);
-    });
-    assert!(matches!(e, FormatError::TooShort { .. } | FormatError::Decode { .. }), "{e}");
-    let e = mi(&["flipped_u16.mhd", "flipped_u16.zraw"], "flipped_u16.mhd", &|d| {
-        let p = d.join("flipped_u16.zraw");
-        let mut b = std::fs::read(&p).unwrap();
-        for x in b.iter_mut().skip(2).take(40) {
-            *x ^= 0x5a;
-        }
-        std::fs::write(&p, b).unwrap();
-    });
-    assert!(matches!(e, FormatError::Decode { encoding: "zlib", .. }), "{e}");
+    let e = mi(
+        &["flipped_u16.mhd", "flipped_u16.zraw"],
+        "flipped_u16.mhd",
+        &|d| {
+            let p = d.join("flipped_u16.zraw");
+            let len = std::fs::metadata(&p).unwrap().len();
+            truncate(&p, len / 2);
+        },
+    );
+    assert!(
+        matches!(e, FormatError::TooShort { .. } | FormatError::Decode { .. }),
+        "{e}"
+    );
+    let e = mi(
+        &["flipped_u16.mhd", "flipped_u16.zraw"],
+        "flipped_u16.mhd",
+        &|d| {
+            let p = d.join("flipped_u16.zraw");
+            let mut b = std::fs::read(&p).unwrap();
+            for x in b.iter_mut().skip(2).take(40) {
+                *x ^= 0x5a;
+            }
+            std::fs::write(&p, b).unwrap();
+        },
+    );
+    assert!(
+        matches!(
+            e,
+            FormatError::Decode {
+                encoding: "zlib",
+                ..
+            }
+        ),
+        "{e}"
+    );
     // A compressed size larger than the file.
     let e = mi(&["float_zlib.mha"], "float_zlib.mha", &|d| {
-        replace_in(&d.join("float_zlib.mha"), "CompressedDataSize = ", "CompressedDataSize = 9")
+        replace_in(
+            &d.join("float_zlib.mha"),
+            "CompressedDataSize = ",
+            "CompressedDataSize = 9",
+        )
     });
     assert!(matches!(e, FormatError::TooShort { .. }), "{e}");
     // DimSize claiming more than zlib can inflate the bytes to.
     let e = mi(&["float_zlib.mha"], "float_zlib.mha", &|d| {
-        replace_in(&d.join("float_zlib.mha"), "DimSize = 10 8 6", "DimSize = 10000 8000 6")
+        replace_in(
+            &d.join("float_zlib.mha"),
+            "DimSize = 10 8 6",
+            "DimSize = 10000 8000 6",
+        )
     });
-    assert!(matches!(&e, FormatError::BadValue { field, .. } if field == "DimSize"), "{e}");
+    assert!(
+        matches!(&e, FormatError::BadValue { field, .. } if field == "DimSize"),
+        "{e}"
+    );
     // Unsupported and malformed keys name the key and the line.
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
         replace_in(&d.join("oblique_i16.mha"), "MET_SHORT", "MET_LONG_LONG")
     });
-    assert!(matches!(&e, FormatError::Unsupported { field, .. } if field == "ElementType"), "{e}");
+    assert!(
+        matches!(&e, FormatError::Unsupported { field, .. } if field == "ElementType"),
+        "{e}"
+    );
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
         replace_in(&d.join("oblique_i16.mha"), "NDims = 3", "NDims = 2")
     });
-    assert!(matches!(&e, FormatError::Unsupported { field, .. } if field == "NDims"), "{e}");
+    assert!(
+        matches!(&e, FormatError::Unsupported { field, .. } if field == "NDims"),
+        "{e}"
+    );
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
-        replace_line(&d.join("oblique_i16.mha"), "ElementSpacing", "ElementSpacing = 0.8 x 1.5")
+        replace_line(
+            &d.join("oblique_i16.mha"),
+            "ElementSpacing",
+            "ElementSpacing = 0.8 x 1.5",
+        )
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, line, .. } if field == "ElementSpacing" && *line > 1),
         "{e}"
     );
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
-        replace_line(&d.join("oblique_i16.mha"), "ElementSpacing", "ElementSpacing = 0 1.1 1.5")
+        replace_line(
+            &d.join("oblique_i16.mha"),
+            "ElementSpacing",
+            "ElementSpacing = 0 1.1 1.5",
+        )
     });
-    assert!(matches!(&e, FormatError::BadValue { field, .. } if field == "ElementSpacing"), "{e}");
+    assert!(
+        matches!(&e, FormatError::BadValue { field, .. } if field == "ElementSpacing"),
+        "{e}"
+    );
     // A missing slice file of a pattern.
     let e = mi(
         &["pattern_u8.mhd", "slices/pat_001.raw", "slices/pat_003.raw"],
         "pattern_u8.mhd",
         &|_| {},
     );
-    assert!(matches!(&e, FormatError::Io { path, .. } if path.ends_with("pat_005.raw")), "{e}");
+    assert!(
+        matches!(&e, FormatError::Io { path, .. } if path.ends_with("pat_005.raw")),
+        "{e}"
+    );
     // A LIST with too few names.
     let e = mi(&["list_u8.mhd"], "list_u8.mhd", &|d| {
         replace_in(&d.join("list_u8.mhd"), "slices/list_5.raw\n", "")
     });
-    assert!(matches!(&e, FormatError::BadValue { field, .. } if field == "ElementDataFile"), "{e}");
+    assert!(
+        matches!(&e, FormatError::BadValue { field, .. } if field == "ElementDataFile"),
+        "{e}"
+    );
     // HeaderSize pointing into the header of a LOCAL file.
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
-        replace_in(&d.join("oblique_i16.mha"), "ObjectType = Image\n", "ObjectType = Image\nHeaderSize = 4\n")
+        replace_in(
+            &d.join("oblique_i16.mha"),
+            "ObjectType = Image\n",
+            "ObjectType = Image\nHeaderSize = 4\n",
+        )
     });
-    assert!(matches!(&e, FormatError::BadValue { field, .. } if field == "HeaderSize"), "{e}");
+    assert!(
+        matches!(&e, FormatError::BadValue { field, .. } if field == "HeaderSize"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -395,17 +480,39 @@ fn metaimage_header_parser_names_key_and_line() {
     let e = formats::metaimage::parse_header(p, b"NDims = 3\nDimSize 4 4 4\n").unwrap_err();
     assert!(matches!(e, FormatError::BadLine { line: 2, .. }), "{e}");
     let e = formats::metaimage::parse_header(p, b"NDims = 3\nNDims = 3\n").unwrap_err();
-    assert!(matches!(&e, FormatError::DuplicateField { line: 2, field, .. } if field == "NDims"), "{e}");
+    assert!(
+        matches!(&e, FormatError::DuplicateField { line: 2, field, .. } if field == "NDims"),
+        "{e}"
+    );
     let e = formats::metaimage::parse_header(p, b"NDims = 3\nDimSize = 4 4 4\n").unwrap_err();
-    assert!(matches!(e, FormatError::MissingField { field: "ElementDataFile", .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            FormatError::MissingField {
+                field: "ElementDataFile",
+                ..
+            }
+        ),
+        "{e}"
+    );
     let h = formats::metaimage::parse_header(
         p,
         b"NDims = 3\nDimSize = 4 4 4\nPosition = 1 2 3\nOrientation = 0 1 0 1 0 0 0 0 1\nElementType = MET_UCHAR\nElementDataFile = d%02d.raw 0\n",
     )
     .unwrap();
     assert_eq!(h.offset, vec![1.0, 2.0, 3.0]);
-    assert_eq!(h.transform.as_deref(), Some(&[0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0][..]));
-    assert!(matches!(&h.data_file, formats::metaimage::DataFile::Pattern { min: 0, step: 1, .. }));
+    assert_eq!(
+        h.transform.as_deref(),
+        Some(&[0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0][..])
+    );
+    assert!(matches!(
+        &h.data_file,
+        formats::metaimage::DataFile::Pattern {
+            min: 0,
+            step: 1,
+            ..
+        }
+    ));
     let files = formats::metaimage::data_file_paths(&h, Path::new("/x/h.mhd"));
     assert_eq!(files[3], Path::new("/x/d03.raw"));
 }
@@ -432,7 +539,9 @@ fn metaimage_world_frame_follows_anatomical_orientation() {
 
 #[test]
 fn bad_vti_files_are_clear_errors() {
-    let vti = |file: &str, edit: &dyn Fn(&Path)| open_edited("vtk_image", &[file], file, |d| edit(&d.join(file))).1;
+    let vti = |file: &str, edit: &dyn Fn(&Path)| {
+        open_edited("vtk_image", &[file], file, |d| edit(&d.join(file))).1
+    };
     // An extent larger than the data.
     let e = vti("binary.vti", &|p| {
         let t = std::fs::read_to_string(p).unwrap();
@@ -444,14 +553,20 @@ fn bad_vti_files_are_clear_errors() {
     let e = vti("ascii.vti", &|p| {
         replace_in(p, "<Piece Extent=\"2 11", "<Piece Extent=\"3 11");
     });
-    assert!(matches!(&e, FormatError::Contradiction { field, .. } if field == "Extent"), "{e}");
+    assert!(
+        matches!(&e, FormatError::Contradiction { field, .. } if field == "Extent"),
+        "{e}"
+    );
     // Truncated appended data (inside the first array, the active one).
     let e = vti("appended_raw.vti", &|p| {
         let t = std::fs::read(p).unwrap();
         let at = t.windows(13).position(|w| w == b"<AppendedData").unwrap();
         truncate(p, at as u64 + 1000);
     });
-    assert!(matches!(e, FormatError::Array { .. } | FormatError::BadLine { .. }), "{e}");
+    assert!(
+        matches!(e, FormatError::Array { .. } | FormatError::BadLine { .. }),
+        "{e}"
+    );
     // A corrupt zlib block, and an LZ4 block claiming more than it can hold.
     let e = vti("binary_zlib.vti", &|p| {
         let t = std::fs::read_to_string(p).unwrap();
@@ -468,38 +583,81 @@ fn bad_vti_files_are_clear_errors() {
     });
     assert!(matches!(e, FormatError::Array { .. }), "{e}");
     let e = vti("appended_lz4.vti", &|p| {
-        replace_in(p, "WholeExtent=\"2 11 -1 6 0 5\"", "WholeExtent=\"2 11 -1 6 0 500\"");
-        replace_in(p, "Piece Extent=\"2 11 -1 6 0 5\"", "Piece Extent=\"2 11 -1 6 0 500\"");
+        replace_in(
+            p,
+            "WholeExtent=\"2 11 -1 6 0 5\"",
+            "WholeExtent=\"2 11 -1 6 0 500\"",
+        );
+        replace_in(
+            p,
+            "Piece Extent=\"2 11 -1 6 0 5\"",
+            "Piece Extent=\"2 11 -1 6 0 500\"",
+        );
     });
     assert!(matches!(e, FormatError::Array { .. }), "{e}");
     // Zero spacing, and a file of another type.
-    let e = vti("ascii.vti", &|p| replace_in(p, "Spacing=\"0.6", "Spacing=\"0"));
-    assert!(matches!(&e, FormatError::BadValue { field, .. } if field == "Spacing"), "{e}");
-    let e = vti("ascii.vti", &|p| replace_in(p, "type=\"ImageData\"", "type=\"PolyData\""));
+    let e = vti("ascii.vti", &|p| {
+        replace_in(p, "Spacing=\"0.6", "Spacing=\"0")
+    });
+    assert!(
+        matches!(&e, FormatError::BadValue { field, .. } if field == "Spacing"),
+        "{e}"
+    );
+    let e = vti("ascii.vti", &|p| {
+        replace_in(p, "type=\"ImageData\"", "type=\"PolyData\"")
+    });
     assert!(matches!(e, FormatError::Unsupported { .. }), "{e}");
 }
 
 #[test]
 fn bad_legacy_vtk_images_are_clear_errors() {
-    let vtk = |file: &str, edit: &dyn Fn(&Path)| open_edited("vtk_image", &[file], file, |d| edit(&d.join(file))).1;
-    let e = vtk("points_v51_binary.vtk", &|p| replace_in(p, "DIMENSIONS 10 8 6", "DIMENSIONS 10 8 7"));
-    assert!(matches!(&e, FormatError::BadLine { reason, .. } if reason.contains("POINT_DATA 480")), "{e}");
+    let vtk = |file: &str, edit: &dyn Fn(&Path)| {
+        open_edited("vtk_image", &[file], file, |d| edit(&d.join(file))).1
+    };
+    let e = vtk("points_v51_binary.vtk", &|p| {
+        replace_in(p, "DIMENSIONS 10 8 6", "DIMENSIONS 10 8 7")
+    });
+    assert!(
+        matches!(&e, FormatError::BadLine { reason, .. } if reason.contains("POINT_DATA 480")),
+        "{e}"
+    );
     let e = vtk("points_v51_binary.vtk", &|p| {
         let len = std::fs::metadata(p).unwrap().len();
         truncate(p, len - 2000);
     });
     assert!(matches!(e, FormatError::BadValue { .. }), "{e}");
-    let e = vtk("rectilinear_ascii.vtk", &|p| replace_in(p, "Z_COORDINATES 6 double\n0 0.5", "Z_COORDINATES 6 double\n0 0"));
+    let e = vtk("rectilinear_ascii.vtk", &|p| {
+        replace_in(
+            p,
+            "Z_COORDINATES 6 double\n0 0.5",
+            "Z_COORDINATES 6 double\n0 0",
+        )
+    });
     assert!(matches!(e, FormatError::Geometry { .. }), "{e}");
-    let e = vtk("rectilinear_ascii.vtk", &|p| replace_in(p, "X_COORDINATES 10", "X_COORDINATES 9"));
-    assert!(matches!(e, FormatError::BadLine { .. } | FormatError::Contradiction { .. }), "{e}");
-    let e = vtk("points_v51_ascii.vtk", &|p| replace_in(p, "SCALARS density short", "SCALARS density vtktypeint64"));
-    assert!(matches!(&e, FormatError::Array { reason, .. } if reason.contains("64-bit")), "{e}");
+    let e = vtk("rectilinear_ascii.vtk", &|p| {
+        replace_in(p, "X_COORDINATES 10", "X_COORDINATES 9")
+    });
+    assert!(
+        matches!(
+            e,
+            FormatError::BadLine { .. } | FormatError::Contradiction { .. }
+        ),
+        "{e}"
+    );
+    let e = vtk("points_v51_ascii.vtk", &|p| {
+        replace_in(p, "SCALARS density short", "SCALARS density vtktypeint64")
+    });
+    assert!(
+        matches!(&e, FormatError::Array { reason, .. } if reason.contains("64-bit")),
+        "{e}"
+    );
 }
 
 #[test]
 fn bad_tiff_files_are_clear_errors() {
-    let tif = |file: &str, edit: &dyn Fn(&Path)| open_edited("tiff", &[file], file, |d| edit(&d.join(file))).1;
+    let tif = |file: &str, edit: &dyn Fn(&Path)| {
+        open_edited("tiff", &[file], file, |d| edit(&d.join(file))).1
+    };
     // Truncated pages.
     let e = tif("plain_u16.tif", &|p| truncate(p, 600));
     assert!(matches!(e, FormatError::Page { .. }), "{e}");
@@ -512,10 +670,24 @@ fn bad_tiff_files_are_clear_errors() {
         }
         std::fs::write(p, b).unwrap();
     });
-    assert!(matches!(e, FormatError::Page { .. } | FormatError::UnknownFormat { .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            FormatError::Page { .. } | FormatError::UnknownFormat { .. }
+        ),
+        "{e}"
+    );
     // Not a TIFF at all.
-    let e = tif("plain_u16.tif", &|p| std::fs::write(p, b"II*\x00garbage").unwrap());
-    assert!(matches!(e, FormatError::UnknownFormat { .. } | FormatError::Page { .. }), "{e}");
+    let e = tif("plain_u16.tif", &|p| {
+        std::fs::write(p, b"II*\x00garbage").unwrap()
+    });
+    assert!(
+        matches!(
+            e,
+            FormatError::UnknownFormat { .. } | FormatError::Page { .. }
+        ),
+        "{e}"
+    );
     // Pages of different sizes: numbered slices where one slice is larger.
     let dir = tempfile::tempdir().unwrap();
     for k in 0..3 {
@@ -525,9 +697,16 @@ fn bad_tiff_files_are_clear_errors() {
         )
         .unwrap();
     }
-    std::fs::copy(data("tiff").join("imagej_f32.tif"), dir.path().join("s_3.tif")).unwrap();
+    std::fs::copy(
+        data("tiff").join("imagej_f32.tif"),
+        dir.path().join("s_3.tif"),
+    )
+    .unwrap();
     let e = formats::open(&dir.path().join("s_*.tif"), &OpenOptions::default()).unwrap_err();
-    assert!(matches!(&e, FormatError::Page { path, .. } if path.ends_with("s_3.tif")), "{e}");
+    assert!(
+        matches!(&e, FormatError::Page { path, .. } if path.ends_with("s_3.tif")),
+        "{e}"
+    );
 }
 
 #[test]

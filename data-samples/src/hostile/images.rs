@@ -7,7 +7,7 @@
 
 use super::{
     Corpus, Entry, Expect, Files, Kind, Reader, ReplaceFirst, b64, cat, f32s_le, find, gradient,
-    spread, u8s, zlib,
+    u8s, zlib,
 };
 
 fn file(name: &str, bytes: Vec<u8>) -> (String, Entry) {
@@ -100,57 +100,229 @@ pub(super) fn metaimage_cases(c: &mut Corpus) -> std::io::Result<()> {
         "v.mhd",
     )?;
     let lying: Vec<(&str, Kind, Vec<u8>)> = vec![
-        ("dims_larger", Kind::LyingHeader, mha.replace_first("DimSize = 5 4 3", "DimSize = 5 4 30")),
-        ("dims_smaller", Kind::LyingHeader, mha.replace_first("DimSize = 5 4 3", "DimSize = 5 4 2")),
-        ("type_larger", Kind::LyingHeader, mha.replace_first("MET_UCHAR", "MET_DOUBLE")),
-        ("type_string", Kind::LyingHeader, mha.replace_first("MET_UCHAR", "MET_STRING")),
-        ("type_i64", Kind::LyingHeader, mha.replace_first("MET_UCHAR", "MET_LONG_LONG")),
-        ("ndims_5", Kind::LyingHeader, mha.replace_first("NDims = 3", "NDims = 5")),
-        ("dims_count", Kind::LyingHeader, mha.replace_first("DimSize = 5 4 3", "DimSize = 5 4")),
-        ("channels_3", Kind::LyingHeader, mha.replace_first("NDims = 3\n", "NDims = 3\nElementNumberOfChannels = 3\n")),
-        ("object_mesh", Kind::LyingHeader, mha.replace_first("ObjectType = Image", "ObjectType = Mesh")),
-        ("no_data_file_line", Kind::LyingHeader, head.replace("ElementDataFile = LOCAL\n", "").into_bytes()),
-        ("ascii_data", Kind::LyingHeader, mha.replace_first("BinaryData = True", "BinaryData = False")),
-        ("compressed_size_larger", Kind::LyingHeader, zmha.replace_first("CompressedDataSize = ", "CompressedDataSize = 9")),
-        ("dims_overflow", Kind::Overflow, mha.replace_first("DimSize = 5 4 3", "DimSize = 1099511627776 1099511627776 1099511627776")),
-        ("dims_u64max", Kind::Overflow, mha.replace_first("DimSize = 5 4 3", "DimSize = 18446744073709551615 1 1")),
-        ("zlib_dims_huge", Kind::Overflow, zmha.replace_first("DimSize = 5 4 3", "DimSize = 5000 4000 3000")),
-        ("headersize_1e15", Kind::HugeSkip, mha.replace_first("NDims = 3\n", "NDims = 3\nHeaderSize = 1000000000000000\n")),
-        ("headersize_i64max", Kind::HugeSkip, mha.replace_first("NDims = 3\n", "NDims = 3\nHeaderSize = 9223372036854775807\n")),
-        ("zlib_garbage", Kind::BadStream, cat(&[zhead.as_bytes(), &z.iter().map(|b| b ^ 0xa5).collect::<Vec<u8>>()])),
-        ("zlib_of_raw", Kind::BadStream, cat(&[zhead.replace(&format!("CompressedDataSize = {}", z.len()), "CompressedDataSize = 240").as_bytes(), &f32s_le(&g)])),
+        (
+            "dims_larger",
+            Kind::LyingHeader,
+            mha.replace_first("DimSize = 5 4 3", "DimSize = 5 4 30"),
+        ),
+        (
+            "dims_smaller",
+            Kind::LyingHeader,
+            mha.replace_first("DimSize = 5 4 3", "DimSize = 5 4 2"),
+        ),
+        (
+            "type_larger",
+            Kind::LyingHeader,
+            mha.replace_first("MET_UCHAR", "MET_DOUBLE"),
+        ),
+        (
+            "type_string",
+            Kind::LyingHeader,
+            mha.replace_first("MET_UCHAR", "MET_STRING"),
+        ),
+        (
+            "type_i64",
+            Kind::LyingHeader,
+            mha.replace_first("MET_UCHAR", "MET_LONG_LONG"),
+        ),
+        (
+            "ndims_5",
+            Kind::LyingHeader,
+            mha.replace_first("NDims = 3", "NDims = 5"),
+        ),
+        (
+            "dims_count",
+            Kind::LyingHeader,
+            mha.replace_first("DimSize = 5 4 3", "DimSize = 5 4"),
+        ),
+        (
+            "channels_3",
+            Kind::LyingHeader,
+            mha.replace_first("NDims = 3\n", "NDims = 3\nElementNumberOfChannels = 3\n"),
+        ),
+        (
+            "object_mesh",
+            Kind::LyingHeader,
+            mha.replace_first("ObjectType = Image", "ObjectType = Mesh"),
+        ),
+        (
+            "no_data_file_line",
+            Kind::LyingHeader,
+            head.replace("ElementDataFile = LOCAL\n", "").into_bytes(),
+        ),
+        (
+            "ascii_data",
+            Kind::LyingHeader,
+            mha.replace_first("BinaryData = True", "BinaryData = False"),
+        ),
+        (
+            "compressed_size_larger",
+            Kind::LyingHeader,
+            zmha.replace_first("CompressedDataSize = ", "CompressedDataSize = 9"),
+        ),
+        (
+            "dims_overflow",
+            Kind::Overflow,
+            mha.replace_first(
+                "DimSize = 5 4 3",
+                "DimSize = 1099511627776 1099511627776 1099511627776",
+            ),
+        ),
+        (
+            "dims_u64max",
+            Kind::Overflow,
+            mha.replace_first("DimSize = 5 4 3", "DimSize = 18446744073709551615 1 1"),
+        ),
+        (
+            "zlib_dims_huge",
+            Kind::Overflow,
+            zmha.replace_first("DimSize = 5 4 3", "DimSize = 5000 4000 3000"),
+        ),
+        (
+            "headersize_1e15",
+            Kind::HugeSkip,
+            mha.replace_first("NDims = 3\n", "NDims = 3\nHeaderSize = 1000000000000000\n"),
+        ),
+        (
+            "headersize_i64max",
+            Kind::HugeSkip,
+            mha.replace_first(
+                "NDims = 3\n",
+                "NDims = 3\nHeaderSize = 9223372036854775807\n",
+            ),
+        ),
+        (
+            "zlib_garbage",
+            Kind::BadStream,
+            cat(&[
+                zhead.as_bytes(),
+                &z.iter().map(|b| b ^ 0xa5).collect::<Vec<u8>>(),
+            ]),
+        ),
+        (
+            "zlib_of_raw",
+            Kind::BadStream,
+            cat(&[
+                zhead
+                    .replace(
+                        &format!("CompressedDataSize = {}", z.len()),
+                        "CompressedDataSize = 240",
+                    )
+                    .as_bytes(),
+                &f32s_le(&g),
+            ]),
+        ),
         ("zlib_bomb", Kind::BadStream, {
             let bomb = zlib(&vec![0u8; 64 << 20]);
-            cat(&[mhd("MET_FLOAT", &format!("CompressedData = True\nCompressedDataSize = {}\n", bomb.len()), "LOCAL").as_bytes(), &bomb])
+            cat(&[
+                mhd(
+                    "MET_FLOAT",
+                    &format!(
+                        "CompressedData = True\nCompressedDataSize = {}\n",
+                        bomb.len()
+                    ),
+                    "LOCAL",
+                )
+                .as_bytes(),
+                &bomb,
+            ])
         }),
-        ("spacing_zero", Kind::BadGeometry, mha.replace_first("ElementSpacing = 1 1 1", "ElementSpacing = 1 0 1")),
-        ("spacing_nan", Kind::BadGeometry, mha.replace_first("ElementSpacing = 1 1 1", "ElementSpacing = nan 1 1")),
-        ("offset_1e30", Kind::BadGeometry, mha.replace_first("Offset = 0 0 0", "Offset = 1e30 0 0")),
-        ("transform_singular", Kind::BadGeometry, mha.replace_first("NDims = 3\n", "NDims = 3\nTransformMatrix = 1 0 0 1 0 0 0 0 1\n")),
-        ("non_utf8", Kind::NonUtf8, super::replace_bytes(&mha, "NDims", b"ND\xffms")),
-        ("long_line", Kind::LongLine, cat(&[b"ObjectType = ", "I".repeat(4 << 20).as_bytes(), b"\n", &mha])),
+        (
+            "spacing_zero",
+            Kind::BadGeometry,
+            mha.replace_first("ElementSpacing = 1 1 1", "ElementSpacing = 1 0 1"),
+        ),
+        (
+            "spacing_nan",
+            Kind::BadGeometry,
+            mha.replace_first("ElementSpacing = 1 1 1", "ElementSpacing = nan 1 1"),
+        ),
+        (
+            "offset_1e30",
+            Kind::BadGeometry,
+            mha.replace_first("Offset = 0 0 0", "Offset = 1e30 0 0"),
+        ),
+        (
+            "transform_singular",
+            Kind::BadGeometry,
+            mha.replace_first(
+                "NDims = 3\n",
+                "NDims = 3\nTransformMatrix = 1 0 0 1 0 0 0 0 1\n",
+            ),
+        ),
+        (
+            "non_utf8",
+            Kind::NonUtf8,
+            super::replace_bytes(&mha, "NDims", b"ND\xffms"),
+        ),
+        (
+            "long_line",
+            Kind::LongLine,
+            cat(&[
+                b"ObjectType = ",
+                "I".repeat(4 << 20).as_bytes(),
+                b"\n",
+                &mha,
+            ]),
+        ),
     ];
     for (n, kind, bytes) in lying {
         c.one(r, kind, &format!("mha_{n}"), "v.mha", bytes)?;
     }
     let detached: Vec<(&str, Kind, Files)> = vec![
-        ("missing_data_file", Kind::SpecialFile, vec![file("v.mhd", mhd("MET_UCHAR", "", "gone.raw").into_bytes())]),
-        ("data_devzero", Kind::SpecialFile, vec![file("v.mhd", mhd("MET_UCHAR", "", "z.raw").into_bytes()), ("z.raw".into(), Entry::Link("/dev/zero".into()))]),
-        ("data_fifo", Kind::SpecialFile, vec![file("v.mhd", mhd("MET_UCHAR", "", "p.raw").into_bytes()), ("p.raw".into(), Entry::Fifo)]),
-        ("pattern_missing_slice", Kind::OutOfRange, vec![
-            file("v.mhd", mhd("MET_UCHAR", "", "s%d.raw 0 2 1").into_bytes()),
-            file("s0.raw", raw[..20].to_vec()),
-            file("s1.raw", raw[20..40].to_vec()),
-        ]),
-        ("list_short", Kind::LyingHeader, vec![
-            file("v.mhd", mhd("MET_UCHAR", "", "LIST\na.raw\nb.raw").into_bytes()),
-            file("a.raw", raw[..20].to_vec()),
-            file("b.raw", raw[20..40].to_vec()),
-        ]),
-        ("headersize_end_short", Kind::HugeSkip, vec![
-            file("v.mhd", mhd("MET_UCHAR", "HeaderSize = -1\n", "v.raw").into_bytes()),
-            file("v.raw", raw[..50].to_vec()),
-        ]),
+        (
+            "missing_data_file",
+            Kind::SpecialFile,
+            vec![file("v.mhd", mhd("MET_UCHAR", "", "gone.raw").into_bytes())],
+        ),
+        (
+            "data_devzero",
+            Kind::SpecialFile,
+            vec![
+                file("v.mhd", mhd("MET_UCHAR", "", "z.raw").into_bytes()),
+                ("z.raw".into(), Entry::Link("/dev/zero".into())),
+            ],
+        ),
+        (
+            "data_fifo",
+            Kind::SpecialFile,
+            vec![
+                file("v.mhd", mhd("MET_UCHAR", "", "p.raw").into_bytes()),
+                ("p.raw".into(), Entry::Fifo),
+            ],
+        ),
+        (
+            "pattern_missing_slice",
+            Kind::OutOfRange,
+            vec![
+                file("v.mhd", mhd("MET_UCHAR", "", "s%d.raw 0 2 1").into_bytes()),
+                file("s0.raw", raw[..20].to_vec()),
+                file("s1.raw", raw[20..40].to_vec()),
+            ],
+        ),
+        (
+            "list_short",
+            Kind::LyingHeader,
+            vec![
+                file(
+                    "v.mhd",
+                    mhd("MET_UCHAR", "", "LIST\na.raw\nb.raw").into_bytes(),
+                ),
+                file("a.raw", raw[..20].to_vec()),
+                file("b.raw", raw[20..40].to_vec()),
+            ],
+        ),
+        (
+            "headersize_end_short",
+            Kind::HugeSkip,
+            vec![
+                file(
+                    "v.mhd",
+                    mhd("MET_UCHAR", "HeaderSize = -1\n", "v.raw").into_bytes(),
+                ),
+                file("v.raw", raw[..50].to_vec()),
+            ],
+        ),
     ];
     for (n, kind, entries) in detached {
         c.add(r, kind, &format!("mhd_{n}"), entries, "v.mhd")?;
@@ -258,7 +430,14 @@ pub(super) fn vtk_image_cases(c: &mut Corpus) -> std::io::Result<()> {
             ),
     )?;
     let tail = find(&appended, "raw\">\n_").end;
-    c.truncations(r, "vti_appended", "v.vti", &appended, &[tail..tail + block.len()], 6)?;
+    c.truncations(
+        r,
+        "vti_appended",
+        "v.vti",
+        &appended,
+        &[tail..tail + block.len()],
+        6,
+    )?;
     let data_at = find(&lb, "LOOKUP_TABLE default\n").end;
     c.truncations(r, "vtk_points", "v.vtk", &lb, &[data_at..lb.len()], 5)?;
     let bad: Vec<(&str, &str, Kind, Vec<u8>)> = vec![
@@ -282,7 +461,7 @@ pub(super) fn vtk_image_cases(c: &mut Corpus) -> std::io::Result<()> {
         ("origin_1e30", "v.vti", Kind::BadGeometry, ascii.replace_first("Origin=\"0 0 0\"", "Origin=\"1e30 0 0\"")),
         ("direction_singular", "v.vti", Kind::BadGeometry, ascii.replace_first("Spacing=\"1 1 1\"", "Spacing=\"1 1 1\" Direction=\"1 0 0 1 0 0 0 0 1\"")),
         ("non_utf8", "v.vti", Kind::NonUtf8, cat(&[&ascii[..20], b"\xff\xfe", &ascii[20..]])),
-        ("long_line", "v.vti", Kind::LongLine, ascii.replace_first("Name=\"g\"", &format!("Name=\"{}\"", "g".repeat(4 << 20)))),
+        ("long_line", "v.vti", Kind::LongLine, ascii.replace_first("Spacing=\"1 1 1\"", &format!("Spacing=\"{}\"", "1 ".repeat(2 << 20)))),
         ("vtk_points_dims_larger", "v.vtk", Kind::LyingHeader, lb.replace_first("DIMENSIONS 5 4 3", "DIMENSIONS 5 4 30")),
         ("vtk_points_count_lies", "v.vtk", Kind::LyingHeader, lb.replace_first("POINT_DATA 60", "POINT_DATA 61")),
         ("vtk_dims_overflow", "v.vtk", Kind::Overflow, lb.replace_first("DIMENSIONS 5 4 3", "DIMENSIONS 4294967296 4294967296 4294967296")),
@@ -375,7 +554,10 @@ fn gradient_pages(bits: u16, format: u16) -> Vec<Page> {
             samples: 1,
             data: match (bits, format) {
                 (8, _) => u8s(slice),
-                (16, _) => slice.iter().flat_map(|&x| (x as u16).to_le_bytes()).collect(),
+                (16, _) => slice
+                    .iter()
+                    .flat_map(|&x| (x as u16).to_le_bytes())
+                    .collect(),
                 _ => f32s_le(slice),
             },
         })
@@ -406,26 +588,50 @@ pub(super) fn tiff_cases(c: &mut Corpus) -> std::io::Result<()> {
         tiff(&pages).0
     };
     let bad: Vec<(&str, Kind, Vec<u8>)> = vec![
-        ("page_wider", Kind::LyingHeader, page(&|p| {
-            p.w = 10;
-            p.h = 2;
-        })),
+        (
+            "page_wider",
+            Kind::LyingHeader,
+            page(&|p| {
+                p.w = 10;
+                p.h = 2;
+            }),
+        ),
         ("page_size_lies", Kind::LyingHeader, page(&|p| p.w = 50)),
         ("bits_12", Kind::LyingHeader, page(&|p| p.bits = 12)),
         ("rgb", Kind::LyingHeader, page(&|p| p.samples = 3)),
-        ("page_type_differs", Kind::LyingHeader, page(&|p| {
-            p.bits = 16;
-            p.data = p.data.iter().flat_map(|&x| u16::from(x).to_le_bytes()).collect();
-        })),
-        ("size_overflow", Kind::Overflow, page(&|p| {
-            p.w = u32::MAX;
-            p.h = u32::MAX;
-        })),
-        ("deflate_garbage", Kind::BadStream, page(&|p| p.compression = 8)),
+        (
+            "page_type_differs",
+            Kind::LyingHeader,
+            page(&|p| {
+                p.bits = 16;
+                p.data = p
+                    .data
+                    .iter()
+                    .flat_map(|&x| u16::from(x).to_le_bytes())
+                    .collect();
+            }),
+        ),
+        (
+            "size_overflow",
+            Kind::Overflow,
+            page(&|p| {
+                p.w = u32::MAX;
+                p.h = u32::MAX;
+            }),
+        ),
+        (
+            "deflate_garbage",
+            Kind::BadStream,
+            page(&|p| p.compression = 8),
+        ),
         ("lzw_garbage", Kind::BadStream, page(&|p| p.compression = 5)),
         ("jpeg", Kind::BadStream, page(&|p| p.compression = 7)),
         ("not_tiff", Kind::NonUtf8, cat(&[b"II*\0", &[0xff; 64]])),
-        ("text", Kind::LongLine, "II*\0 not really".repeat(1 << 18).into_bytes()),
+        (
+            "text",
+            Kind::LongLine,
+            "II*\0 not really".repeat(1 << 18).into_bytes(),
+        ),
     ];
     for (n, kind, bytes) in bad {
         c.one(r, kind, &format!("tiff_{n}"), "v.tif", bytes)?;
@@ -450,13 +656,20 @@ pub(super) fn tiff_cases(c: &mut Corpus) -> std::io::Result<()> {
         .enumerate()
         .map(|(k, p)| file(&format!("s_{k:03}.tif"), tiff(&[p]).0))
         .collect();
-    c.add(r, Kind::LyingHeader, "tiff_slices_sizes_differ", slices, "s_*.tif")?;
+    c.add(
+        r,
+        Kind::LyingHeader,
+        "tiff_slices_sizes_differ",
+        slices,
+        "s_*.tif",
+    )?;
     c.special(r, "tiff_special", "x.tif")?;
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::spread;
     use super::*;
 
     #[test]
@@ -472,6 +685,10 @@ mod tests {
         assert_eq!(at as usize, ranges[0].start);
         assert_eq!(&t[ranges[0].clone()], &u8s(&gradient())[..20]);
         // `spread` picks cuts inside the strips.
-        assert!(spread(&ranges, 4).iter().all(|&c| ranges.iter().any(|r| r.contains(&c))));
+        assert!(
+            spread(&ranges, 4)
+                .iter()
+                .all(|&c| ranges.iter().any(|r| r.contains(&c)))
+        );
     }
 }

@@ -584,7 +584,11 @@ impl<'a> Parser<'a> {
                     ("SCALARS", name, comps, ty)
                 }
                 "VECTORS" | "NORMALS" => (
-                    if kw == "VECTORS" { "VECTORS" } else { "NORMALS" },
+                    if kw == "VECTORS" {
+                        "VECTORS"
+                    } else {
+                        "NORMALS"
+                    },
                     decode_name(self.word(&line, 1, "name")?),
                     3,
                     self.scalar_word(&line, 2)?,

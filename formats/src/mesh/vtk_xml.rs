@@ -493,12 +493,7 @@ impl Ctx<'_> {
 
     /// The decoded bytes of a binary or appended array, exactly `count` values of `ty`, in
     /// the file's byte order.
-    pub fn bytes(
-        &self,
-        a: &ArraySpec<'_>,
-        count: usize,
-        ty: Scalar,
-    ) -> Result<Vec<u8>, MeshError> {
+    pub fn bytes(&self, a: &ArraySpec<'_>, count: usize, ty: Scalar) -> Result<Vec<u8>, MeshError> {
         let expected = (count as u64)
             .checked_mul(ty.size() as u64)
             .filter(|&n| usize::try_from(n).is_ok())

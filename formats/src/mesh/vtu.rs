@@ -65,8 +65,7 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<RawMesh, MeshError> {
     let arrays = &doc.arrays;
 
     // Headers lie: bound counts by what a file of this size can describe, unless compressed.
-    if ctx.compressor == Compressor::None
-        && (n_points as u64).saturating_mul(3) > data.len() as u64
+    if ctx.compressor == Compressor::None && (n_points as u64).saturating_mul(3) > data.len() as u64
     {
         return Err(MeshError::TooShort {
             path: path.to_path_buf(),

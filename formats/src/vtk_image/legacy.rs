@@ -56,7 +56,9 @@ fn walk<'a>(path: &'a Path, data: &'a [u8]) -> Result<Parsed<'a>, MeshError> {
     while let Some(line) = p.keyword_line()? {
         let kw = line.words[0].to_ascii_uppercase();
         if kw != "DATASET" && out.dataset.is_empty() && kw != "FIELD" && kw != "METADATA" {
-            return Err(p.c.err_at(line.start, format!("{} before DATASET", line.words[0])));
+            return Err(p
+                .c
+                .err_at(line.start, format!("{} before DATASET", line.words[0])));
         }
         match kw.as_str() {
             "DATASET" => {
@@ -208,11 +210,13 @@ fn rectilinear_grid(
     const NAMES: [&str; 3] = ["X_COORDINATES", "Y_COORDINATES", "Z_COORDINATES"];
     let mut axes = Vec::with_capacity(3);
     for a in 0..3 {
-        let c = coords[a].as_ref().ok_or_else(|| FormatError::MissingField {
-            path: path.to_path_buf(),
-            field: NAMES[a],
-            reason: "DATASET RECTILINEAR_GRID".into(),
-        })?;
+        let c = coords[a]
+            .as_ref()
+            .ok_or_else(|| FormatError::MissingField {
+                path: path.to_path_buf(),
+                field: NAMES[a],
+                reason: "DATASET RECTILINEAR_GRID".into(),
+            })?;
         if c.len() != dims[a] {
             return Err(FormatError::Contradiction {
                 path: path.to_path_buf(),

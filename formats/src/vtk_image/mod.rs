@@ -321,4 +321,3 @@ pub(crate) fn voxels_from_binary(bytes: Vec<u8>, ty: VoxelType, big_endian: bool
     };
     crate::raw::voxels_from_vec(bytes, ty, endian)
 }
-

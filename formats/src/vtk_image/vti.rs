@@ -124,14 +124,14 @@ pub fn parse(
     field: Option<&str>,
 ) -> Result<RectilinearVolume, FormatError> {
     let doc = document(path, data)?;
-    let image = doc
-        .elements_named(b"ImageData")
-        .next()
-        .ok_or_else(|| FormatError::MissingField {
-            path: path.to_path_buf(),
-            field: "ImageData",
-            reason: "no <ImageData> element".into(),
-        })?;
+    let image =
+        doc.elements_named(b"ImageData")
+            .next()
+            .ok_or_else(|| FormatError::MissingField {
+                path: path.to_path_buf(),
+                field: "ImageData",
+                reason: "no <ImageData> element".into(),
+            })?;
     let whole = extent(path, data, image, "WholeExtent")?;
     let origin = numbers::<3>(path, data, image, "Origin", Some([0.0; 3]))?;
     let spacing = numbers::<3>(path, data, image, "Spacing", Some([1.0; 3]))?;
