@@ -362,38 +362,35 @@ pub fn metaimage(data: &[u8]) -> Outcome {
     let dir = scratch_dir("metaimage");
     let parsed = formats::metaimage::parse_header(Path::new("fuzz.mhd"), data).ok();
     let mut written = Vec::new();
-    let path = match parsed
+    let detached = parsed
         .as_ref()
-        .filter(|h| h.data_file != formats::metaimage::DataFile::Local)
-    {
-        Some(header) => {
-            let path = dir.join("h.mhd");
-            let files = formats::metaimage::data_file_paths(header, &path);
-            let ours: Vec<_> = files
-                .iter()
-                .filter(|f| f.parent() == Some(dir.as_path()))
-                .take(MAX_DATA_FILES)
-                .collect();
-            let rest = &data[header.header_len.min(data.len())..];
-            let per = rest.len() / ours.len().max(1);
-            for (i, f) in ours.iter().enumerate() {
-                let chunk = if i + 1 == ours.len() {
-                    &rest[i * per..]
-                } else {
-                    &rest[i * per..(i + 1) * per]
-                };
-                if std::fs::write(f, chunk).is_ok() {
-                    written.push((*f).clone());
-                }
+        .filter(|h| h.data_file != formats::metaimage::DataFile::Local);
+    let path = if let Some(header) = detached {
+        let path = dir.join("h.mhd");
+        let files = formats::metaimage::data_file_paths(header, &path);
+        let ours: Vec<_> = files
+            .iter()
+            .filter(|f| f.parent() == Some(dir.as_path()))
+            .take(MAX_DATA_FILES)
+            .collect();
+        let rest = &data[header.header_len.min(data.len())..];
+        let per = rest.len() / ours.len().max(1);
+        for (i, f) in ours.iter().enumerate() {
+            let chunk = if i + 1 == ours.len() {
+                &rest[i * per..]
+            } else {
+                &rest[i * per..(i + 1) * per]
+            };
+            if std::fs::write(f, chunk).is_ok() {
+                written.push((*f).clone());
             }
-            std::fs::write(&path, &data[..header.header_len.min(data.len())]).expect("write h.mhd");
-            path
         }
-        None => {
-            let path = dir.join("a.mha");
-            std::fs::write(&path, data).expect("write a.mha");
-            path
-        }
+        std::fs::write(&path, &data[..header.header_len.min(data.len())]).expect("write h.mhd");
+        path
+    } else {
+        let path = dir.join("a.mha");
+        std::fs::write(&path, data).expect("write a.mha");
+        path
     };
     let result = formats::metaimage::read_metaimage(&path).map(|d| check_dataset(&d));
     for f in written {

@@ -200,6 +200,14 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         return tiff::read_tiff(path, options);
     }
     if let Some(layout) = &options.raw {
+        refuse_unused(
+            path,
+            &OpenOptions {
+                spacing: None,
+                ..options.clone()
+            },
+            false,
+        )?;
         return raw::read_raw(path, layout).map(Dataset::Volume);
     }
     if name.ends_with(".nii") || name.ends_with(".nii.gz") {
@@ -214,6 +222,8 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         && !name.ends_with(".json")
     {
         let layout = raw::RawLayout::from_sidecar(&side)?;
+        // The sidecar gives the spacing: a --spacing would be ignored.
+        refuse_unused(path, options, false)?;
         return raw::read_raw(path, &layout).map(Dataset::Volume);
     }
     // Sniff: a NRRD under another name.

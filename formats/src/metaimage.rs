@@ -49,6 +49,9 @@ use crate::raw::Endian;
 /// The most header bytes read (a `LIST` of many slice files included).
 pub const MAX_HEADER_BYTES: usize = 4 << 20;
 
+/// The most data files a pattern or `LIST` may name.
+pub const MAX_DATA_FILES: usize = 1 << 20;
+
 /// Where the voxels are.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DataFile {
@@ -362,8 +365,9 @@ pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<MetaHeader, FormatError
     let mut header_len = pos;
     let data_file = if data_file_value.eq_ignore_ascii_case("LOCAL") {
         DataFile::Local
-    } else if data_file_value.len() >= 4 && data_file_value[..4].eq_ignore_ascii_case("LIST") {
-        let dims_word = data_file_value[4..].trim();
+    } else if is_list(&data_file_value) {
+        // `is_list` checked that the first 4 bytes are ASCII.
+        let dims_word = data_file_value.get(4..).unwrap_or("").trim();
         let file_dims = if dims_word.is_empty() {
             ndims - 1
         } else {
@@ -384,15 +388,16 @@ pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<MetaHeader, FormatError
         let count = dim_size[file_dims..]
             .iter()
             .try_fold(1usize, |acc, &d| acc.checked_mul(d))
-            .filter(|&n| n <= 1 << 20)
+            .filter(|&n| n <= MAX_DATA_FILES)
             .ok_or_else(|| {
                 bad(
                     "ElementDataFile",
                     data_line,
-                    "LIST: more than 2^20 data files".into(),
+                    format!("LIST: more than {MAX_DATA_FILES} data files"),
                 )
             })?;
-        let mut files = Vec::with_capacity(count);
+        // A name takes at least two bytes (a character and a newline).
+        let mut files = Vec::with_capacity(count.min(bytes.len().saturating_sub(pos) / 2));
         while files.len() < count && pos < bytes.len() {
             let end = bytes[pos..]
                 .iter()
@@ -421,6 +426,16 @@ pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<MetaHeader, FormatError
         DataFile::List { file_dims, files }
     } else if data_file_value.contains('%') {
         let words: Vec<&str> = data_file_value.split_ascii_whitespace().collect();
+        if dim_size[ndims - 1] > MAX_DATA_FILES {
+            return Err(bad(
+                "ElementDataFile",
+                data_line,
+                format!(
+                    "a pattern of {} files (one per slice of the last axis): more than {MAX_DATA_FILES}",
+                    dim_size[ndims - 1]
+                ),
+            ));
+        }
         let last = dim_size[ndims - 1] as i64;
         let num = |i: usize| -> Result<Option<i64>, FormatError> {
             words
@@ -502,11 +517,18 @@ pub fn read_header_bytes(path: &Path) -> Result<Vec<u8>, FormatError> {
         {
             let line = String::from_utf8_lossy(&buf[at..at + nl]);
             let value = line.split_once('=').map_or("", |(_, v)| v.trim());
-            if !(value.len() >= 4 && value[..4].eq_ignore_ascii_case("LIST")) {
+            if !is_list(value) {
                 return Ok(buf);
             }
         }
     }
+}
+
+/// True for an `ElementDataFile` value `LIST [dims]`.
+fn is_list(value: &str) -> bool {
+    value
+        .get(..4)
+        .is_some_and(|p| p.eq_ignore_ascii_case("LIST"))
 }
 
 /// The start of a line beginning with `key` (case-insensitive).

@@ -335,7 +335,7 @@ fn bad_metaimage_files_are_clear_errors() {
             &d.join("oblique_i16.mha"),
             "DimSize = 10 8 6",
             "DimSize = 10 8 9",
-        )
+        );
     });
     assert!(matches!(e, FormatError::TooShort { .. }), "{e}");
     // Truncated detached data.
@@ -390,7 +390,7 @@ fn bad_metaimage_files_are_clear_errors() {
             &d.join("float_zlib.mha"),
             "CompressedDataSize = ",
             "CompressedDataSize = 9",
-        )
+        );
     });
     assert!(matches!(e, FormatError::TooShort { .. }), "{e}");
     // DimSize claiming more than zlib can inflate the bytes to.
@@ -399,7 +399,7 @@ fn bad_metaimage_files_are_clear_errors() {
             &d.join("float_zlib.mha"),
             "DimSize = 10 8 6",
             "DimSize = 10000 8000 6",
-        )
+        );
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, .. } if field == "DimSize"),
@@ -407,14 +407,14 @@ fn bad_metaimage_files_are_clear_errors() {
     );
     // Unsupported and malformed keys name the key and the line.
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
-        replace_in(&d.join("oblique_i16.mha"), "MET_SHORT", "MET_LONG_LONG")
+        replace_in(&d.join("oblique_i16.mha"), "MET_SHORT", "MET_LONG_LONG");
     });
     assert!(
         matches!(&e, FormatError::Unsupported { field, .. } if field == "ElementType"),
         "{e}"
     );
     let e = mi(&["oblique_i16.mha"], "oblique_i16.mha", &|d| {
-        replace_in(&d.join("oblique_i16.mha"), "NDims = 3", "NDims = 2")
+        replace_in(&d.join("oblique_i16.mha"), "NDims = 3", "NDims = 2");
     });
     assert!(
         matches!(&e, FormatError::Unsupported { field, .. } if field == "NDims"),
@@ -425,7 +425,7 @@ fn bad_metaimage_files_are_clear_errors() {
             &d.join("oblique_i16.mha"),
             "ElementSpacing",
             "ElementSpacing = 0.8 x 1.5",
-        )
+        );
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, line, .. } if field == "ElementSpacing" && *line > 1),
@@ -436,7 +436,7 @@ fn bad_metaimage_files_are_clear_errors() {
             &d.join("oblique_i16.mha"),
             "ElementSpacing",
             "ElementSpacing = 0 1.1 1.5",
-        )
+        );
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, .. } if field == "ElementSpacing"),
@@ -454,7 +454,7 @@ fn bad_metaimage_files_are_clear_errors() {
     );
     // A LIST with too few names.
     let e = mi(&["list_u8.mhd"], "list_u8.mhd", &|d| {
-        replace_in(&d.join("list_u8.mhd"), "slices/list_5.raw\n", "")
+        replace_in(&d.join("list_u8.mhd"), "slices/list_5.raw\n", "");
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, .. } if field == "ElementDataFile"),
@@ -466,7 +466,7 @@ fn bad_metaimage_files_are_clear_errors() {
             &d.join("oblique_i16.mha"),
             "ObjectType = Image\n",
             "ObjectType = Image\nHeaderSize = 4\n",
-        )
+        );
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, .. } if field == "HeaderSize"),
@@ -515,6 +515,32 @@ fn metaimage_header_parser_names_key_and_line() {
     ));
     let files = formats::metaimage::data_file_paths(&h, Path::new("/x/h.mhd"));
     assert_eq!(files[3], Path::new("/x/d03.raw"));
+}
+
+#[test]
+fn metaimage_data_file_names_of_any_text_are_not_sliced_mid_character() {
+    // "LIST" is checked on the first four bytes: a name whose 4th byte is inside a
+    // multi-byte character must not panic.
+    let h = formats::metaimage::parse_header(
+        Path::new("h.mhd"),
+        "NDims = 3\nDimSize = 1 1 1\nElementType = MET_UCHAR\nElementDataFile = ab\u{e9}c.raw\n"
+            .as_bytes(),
+    )
+    .unwrap();
+    assert_eq!(
+        h.data_file,
+        formats::metaimage::DataFile::File("ab\u{e9}c.raw".into())
+    );
+    // A pattern of 10^12 slice files is refused before a name is made.
+    let e = formats::metaimage::parse_header(
+        Path::new("h.mhd"),
+        b"NDims = 3\nDimSize = 1 1 1000000000000\nElementType = MET_UCHAR\nElementDataFile = s%d.raw\n",
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, FormatError::BadValue { field, .. } if field == "ElementDataFile"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -597,14 +623,14 @@ fn bad_vti_files_are_clear_errors() {
     assert!(matches!(e, FormatError::Array { .. }), "{e}");
     // Zero spacing, and a file of another type.
     let e = vti("ascii.vti", &|p| {
-        replace_in(p, "Spacing=\"0.6", "Spacing=\"0")
+        replace_in(p, "Spacing=\"0.6", "Spacing=\"0");
     });
     assert!(
         matches!(&e, FormatError::BadValue { field, .. } if field == "Spacing"),
         "{e}"
     );
     let e = vti("ascii.vti", &|p| {
-        replace_in(p, "type=\"ImageData\"", "type=\"PolyData\"")
+        replace_in(p, "type=\"ImageData\"", "type=\"PolyData\"");
     });
     assert!(matches!(e, FormatError::Unsupported { .. }), "{e}");
 }
@@ -615,7 +641,7 @@ fn bad_legacy_vtk_images_are_clear_errors() {
         open_edited("vtk_image", &[file], file, |d| edit(&d.join(file))).1
     };
     let e = vtk("points_v51_binary.vtk", &|p| {
-        replace_in(p, "DIMENSIONS 10 8 6", "DIMENSIONS 10 8 7")
+        replace_in(p, "DIMENSIONS 10 8 6", "DIMENSIONS 10 8 7");
     });
     assert!(
         matches!(&e, FormatError::BadLine { reason, .. } if reason.contains("POINT_DATA 480")),
@@ -631,11 +657,11 @@ fn bad_legacy_vtk_images_are_clear_errors() {
             p,
             "Z_COORDINATES 6 double\n0 0.5",
             "Z_COORDINATES 6 double\n0 0",
-        )
+        );
     });
     assert!(matches!(e, FormatError::Geometry { .. }), "{e}");
     let e = vtk("rectilinear_ascii.vtk", &|p| {
-        replace_in(p, "X_COORDINATES 10", "X_COORDINATES 9")
+        replace_in(p, "X_COORDINATES 10", "X_COORDINATES 9");
     });
     assert!(
         matches!(
@@ -645,7 +671,7 @@ fn bad_legacy_vtk_images_are_clear_errors() {
         "{e}"
     );
     let e = vtk("points_v51_ascii.vtk", &|p| {
-        replace_in(p, "SCALARS density short", "SCALARS density vtktypeint64")
+        replace_in(p, "SCALARS density short", "SCALARS density vtktypeint64");
     });
     assert!(
         matches!(&e, FormatError::Array { reason, .. } if reason.contains("64-bit")),
@@ -679,7 +705,7 @@ fn bad_tiff_files_are_clear_errors() {
     );
     // Not a TIFF at all.
     let e = tif("plain_u16.tif", &|p| {
-        std::fs::write(p, b"II*\x00garbage").unwrap()
+        std::fs::write(p, b"II*\x00garbage").unwrap();
     });
     assert!(
         matches!(

@@ -579,7 +579,7 @@ pub(super) fn tiff_cases(c: &mut Corpus) -> std::io::Result<()> {
         .collect();
     c.add(r, Kind::Valid, "tiff_slices", slices, "s_%03d.tif")?
         .expect = Expect::Renders;
-    let strips: Vec<_> = ranges.iter().cloned().collect();
+    let strips = ranges.clone();
     c.truncations(r, "tiff", "v.tif", &u8tif, &strips, 6)?;
     c.truncations(r, "tiff_ifd", "v.tif", &u8tif, &[9..ranges[0].start], 5)?;
     let page = |f: &dyn Fn(&mut Page)| {
