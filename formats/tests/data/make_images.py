@@ -42,7 +42,7 @@ def field(nx=NX, ny=NY, nz=NZ):
 
 def dtype_name(dt):
     return {"uint8": "u8", "int8": "i8", "uint16": "u16", "int16": "i16", "uint32": "u32",
-            "int32": "i32", "float32": "f32", "float64": "f64"}[np.dtype(dt).name]
+            "int32": "i32", "float16": "f32", "float32": "f32", "float64": "f64"}[np.dtype(dt).name]
 
 
 def corners(dims):
@@ -422,7 +422,9 @@ def tiff_files():
     for name, arr in [("deflate_i32.tif", (f * 1000 - 50000).astype(np.int32)),
                       ("deflate_f64.tif", f.astype(np.float64)),
                       ("plain_i8.tif", (f - 70).clip(-128, 127).astype(np.int8)),
-                      ("plain_i16.tif", (f * 50 - 3000).astype(np.int16))]:
+                      ("plain_i16.tif", (f * 50 - 3000).astype(np.int16)),
+                      # Half floats: read as f32 (every f16 is an f32).
+                      ("plain_f16.tif", f.astype(np.float16))]:
         p = os.path.join(d, name)
         tifffile.imwrite(p, arr, compression="zlib" if name.startswith("deflate") else None)
         truths.append(tiff_truth(name, tifffile.imread(p), [1.0, 1.0, 1.0]))
