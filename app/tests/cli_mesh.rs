@@ -341,7 +341,10 @@ fn bad_meshes_and_flags_give_clear_errors() {
     let e = fails(&["render", s(&vol), "--bvh", "sah", "-o", s(&out)]);
     assert!(e.contains("tetrahedral meshes"), "{e}");
     let e = fails(&["render", s(&vol), "--field", "distance", "-o", s(&out)]);
-    assert!(e.contains("named point arrays") && e.contains("v.nrrd"), "{e}");
+    assert!(
+        e.contains("named point arrays") && e.contains("v.nrrd"),
+        "{e}"
+    );
 
     // Garbage and truncated files name the file.
     let bad = dir.path().join("bad.vtu");

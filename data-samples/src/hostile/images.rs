@@ -579,6 +579,15 @@ pub(super) fn tiff_cases(c: &mut Corpus) -> std::io::Result<()> {
         .collect();
     c.add(r, Kind::Valid, "tiff_slices", slices, "s_%03d.tif")?
         .expect = Expect::Renders;
+    // Two pages (5×4×2). Also the corpus's last valid case: the viewer test opens a 5×4×3
+    // gradient after the corpus and waits for a new frame, which an identical view (the
+    // slices above are that same grid) would not need.
+    c.valid(
+        r,
+        "tiff_two_pages",
+        "v.tif",
+        tiff(&gradient_pages(8, 1)[..2]).0,
+    )?;
     let strips = ranges.clone();
     c.truncations(r, "tiff", "v.tif", &u8tif, &strips, 6)?;
     c.truncations(r, "tiff_ifd", "v.tif", &u8tif, &[9..ranges[0].start], 5)?;
