@@ -14,7 +14,7 @@
 //! - ImageJ files (`ImageDescription` starting `ImageJ=`): `slices=`, `frames=` (more than one
 //!   frame: a time series, `finterval=` between frames) and `channels=` (more than one is
 //!   refused), `spacing=` (z) and `unit=`; x and y spacing are `1 / XResolution` and `1 /
-//!   YResolution` (pixels per unit). Spacing stays in the file's unit ([`TiffInfo::unit`]).
+//!   YResolution` (pixels per unit). Spacing stays in the file's unit (`unit=`, e.g. micron).
 //! - An axis whose spacing the file does not record takes it from
 //!   [`crate::OpenOptions::spacing`] (the CLI's `--spacing`), else 1. Resolution tags of
 //!   files without ImageJ metadata are ignored: most writers put 72 dpi there, which says
@@ -84,20 +84,6 @@ pub fn parse_imagej(description: &str) -> Option<ImageJ> {
 /// ImageJ writes `µ` as `\u00B5` in the unit.
 fn unescape_unit(v: &str) -> String {
     v.replace("\\u00B5", "\u{b5}")
-}
-
-/// What was read besides the voxels.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct TiffInfo {
-    /// Pages read.
-    pub pages: usize,
-    /// Page width and height.
-    pub size: (u32, u32),
-    pub imagej: Option<ImageJ>,
-    /// Sample spacing per axis as the file records it (`None`: not recorded).
-    pub spacing: [Option<f64>; 3],
-    /// The spacing unit (ImageJ `unit=`).
-    pub unit: Option<String>,
 }
 
 /// Pages decoded so far, in their sample type.
