@@ -6,8 +6,8 @@
 //!
 //! | kind | files | acceleration structure |
 //! |---|---|---|
-//! | [`AnyScene::Grid`] | NRRD/NHDR, raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
-//! | [`AnyScene::Tet`] | `.vtk`, `.vtu`, `.msh`, `.node`/`.ele`, a `.pvd` collection or a mesh pattern (`step_%03d.vtu`, `step_*.vtu`) — via `formats::mesh` | implicit min/max BVH with 4D bounds ([`TetScene`], ch. 8) |
+//! | [`AnyScene::Grid`] | NRRD/NHDR, MetaImage `.mha`/`.mhd`, VTK image data (`.vti`, legacy `.vtk` structured points and rectilinear grids), TIFF stacks (multi-page, or numbered 2D slices `slice_*.tif`), raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD and MetaImage — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
+//! | [`AnyScene::Tet`] | `.vtk` (unstructured grids: a `.vtk` is a mesh or a grid by its `DATASET` line), `.vtu`, `.msh`, `.node`/`.ele`, a `.pvd` collection or a mesh pattern (`step_%03d.vtu`, `step_*.vtu`) — via `formats::mesh` | implicit min/max BVH with 4D bounds ([`TetScene`], ch. 8) |
 //! | [`AnyScene::Ooc`] | `.isot` treelet files (`isoscope preprocess`) — via `formats::treelet::open_isot` | treelets + loader thread ([`AnyOocVolume`], §7.7–7.8) |
 //!
 //! ## Use
@@ -45,7 +45,10 @@
 //!   (thesis §7.6), meshes refit the BVH (§8.5.2: value ranges only when only scalars change,
 //!   full 4D refit when points move).
 //! - Meshes: the drawn point array is [`SceneOptions::field`] (default: the first one) and
-//!   can be switched with [`TetData::set_field`] (a value refit, no rebuild). Normals
+//!   can be switched with [`TetData::set_field`] (a value refit, no rebuild). VTK image data
+//!   with several point arrays likewise (`formats::OpenOptions::field`; default: the active
+//!   scalars): [`SceneData::set_field`] re-reads the file with the other array and refits
+//!   the kd-tree when dims and voxel type stay. Normals
 //!   ([`TetNormals`], faceted by default) and the packet size ([`SceneOptions::packet_rays`],
 //!   default 256 = 16×16; the renderer orders a tile's rays along a Morton curve, so 4 rays are
 //!   a 2×2 block and 256 a 16×16 block) are per-scene settings.
@@ -100,7 +103,8 @@ impl std::fmt::Display for SceneKind {
 }
 
 /// What [`open_scene`] will open `path` as: meshes by extension (`.vtk`, `.vtu`, `.msh`,
-/// `.node`, `.ele`, `.pvd`, also in patterns), `.isot` by extension or magic, else a grid.
+/// `.node`, `.ele`, `.pvd`, also in patterns; a `.vtk` whose `DATASET` is an image is a grid),
+/// `.isot` by extension or magic, else a grid.
 pub fn detect_kind(path: &Path) -> SceneKind {
     let ext = path
         .extension()
@@ -118,7 +122,7 @@ pub fn detect_kind(path: &Path) -> SceneKind {
 /// How to open a file (everything but the path).
 #[derive(Debug, Clone)]
 pub struct SceneOptions {
-    /// Raw-file layout (grids only; ignored for self-describing files).
+    /// Raw-file layout, TIFF spacing, VTK image array (grids only; see `formats::open`).
     pub open: formats::OpenOptions,
     /// Time step to show first (grids and meshes; `0` for single files).
     pub step: usize,
@@ -522,6 +526,11 @@ pub struct GridData {
     step: usize,
     scene: AnyGridScene,
     value_range: Option<(f64, f64)>,
+    /// How the file was opened (to re-read it with another array).
+    open: formats::OpenOptions,
+    /// VTK image data: the scalar point arrays and the one drawn.
+    arrays: Vec<String>,
+    field: Option<String>,
 }
 
 impl std::fmt::Debug for GridData {
@@ -544,6 +553,7 @@ impl GridData {
         options: &SceneOptions,
         control: &OpenControl<'_>,
     ) -> anyhow::Result<Self> {
+        let (arrays, field) = image_arrays(path, &options.open)?;
         let (volume, series) = match formats::open(path, &options.open)? {
             formats::Dataset::Volume(v) => {
                 check_step(options.step, 1, path)?;
@@ -568,6 +578,9 @@ impl GridData {
             step: options.step,
             scene,
             value_range,
+            open: options.open.clone(),
+            arrays,
+            field,
         })
     }
 
@@ -582,6 +595,9 @@ impl GridData {
             step: 0,
             scene,
             value_range,
+            open: formats::OpenOptions::default(),
+            arrays: Vec::new(),
+            field: None,
         }
     }
 
@@ -609,6 +625,32 @@ impl GridData {
             .with_context(|| format!("loading time step {step} of {}", self.path.display()))?;
         Ok(Some(v))
     }
+}
+
+/// VTK image data (a file, or the first file of a pattern): its scalar point arrays and the
+/// one `open` reads; nothing for other files.
+fn image_arrays(
+    path: &Path,
+    open: &formats::OpenOptions,
+) -> anyhow::Result<(Vec<String>, Option<String>)> {
+    let file = if !path.exists() && formats::series::is_pattern(path) {
+        match formats::series::expand_pattern(path) {
+            Ok(files) => files.into_iter().next(),
+            // `formats::open` reports the pattern's error.
+            Err(_) => None,
+        }
+    } else {
+        Some(path.to_path_buf())
+    };
+    let Some(file) = file.filter(|f| formats::vtk_image::is_image_file(f)) else {
+        return Ok((Vec::new(), None));
+    };
+    let arrays = formats::vtk_image::point_arrays(&file)?;
+    let field = open
+        .field
+        .clone()
+        .or_else(|| arrays.default_name().map(str::to_owned));
+    Ok((arrays.scalar_names(), field))
 }
 
 /// Puts `volume` into `scene`: a refit when dims and voxel type stay, else a rebuild
@@ -695,13 +737,60 @@ impl SceneData for GridData {
     fn describe(&self) -> String {
         let d = self.volume.dims();
         format!(
-            "grid {}x{}x{} {}{}",
+            "grid {}x{}x{} {}{}{}",
             d[0],
             d[1],
             d[2],
             self.volume.data.voxel_type(),
+            self.field
+                .as_ref()
+                .map(|f| format!(", array \"{f}\""))
+                .unwrap_or_default(),
             step_suffix(self)
         )
+    }
+
+    fn field_names(&self) -> Vec<&str> {
+        self.arrays.iter().map(String::as_str).collect()
+    }
+
+    fn field(&self) -> Option<&str> {
+        self.field.as_deref()
+    }
+
+    /// Re-reads the file with the point array `name` (VTK image data) at the current step.
+    fn set_field(&mut self, name: &str) -> anyhow::Result<()> {
+        if !self.arrays.iter().any(|a| a == name) {
+            bail!(
+                "{}: no scalar point array \"{name}\"{}",
+                self.path.display(),
+                if self.arrays.is_empty() {
+                    " (only VTK image data and meshes have named arrays)".to_owned()
+                } else {
+                    format!("; it has {}", self.arrays.join(", "))
+                }
+            );
+        }
+        let open = formats::OpenOptions {
+            field: Some(name.to_owned()),
+            ..self.open.clone()
+        };
+        let (volume, series) = match formats::open(&self.path, &open)? {
+            formats::Dataset::Volume(v) => (v, None),
+            formats::Dataset::Series(s) => {
+                let v = s.step(self.step).with_context(|| {
+                    format!("loading time step {} of {}", self.step, self.path.display())
+                })?;
+                (v, Some(s))
+            }
+        };
+        update_grid_scene(&mut self.scene, &volume);
+        self.value_range = volume.value_stats().finite_range;
+        self.volume = volume;
+        self.series = series;
+        self.open = open;
+        self.field = Some(name.to_owned());
+        Ok(())
     }
 }
 
@@ -1321,6 +1410,48 @@ mod tests {
         assert_eq!(detect_kind(Path::new("c.pvd")), SceneKind::Tet);
         assert_eq!(detect_kind(Path::new("v.isot")), SceneKind::Ooc);
         assert_eq!(detect_kind(Path::new("v.nrrd")), SceneKind::Grid);
+    }
+
+    fn image_data(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../formats/tests/data")
+            .join(name)
+    }
+
+    #[test]
+    fn a_vtk_image_is_a_grid_and_switches_arrays() {
+        let vti = image_data("vtk_image/binary_zlib.vti");
+        let legacy = image_data("vtk_image/points_v42_binary.vtk");
+        assert_eq!(detect_kind(&vti), SceneKind::Grid);
+        assert_eq!(detect_kind(&legacy), SceneKind::Grid);
+        assert_eq!(
+            detect_kind(&image_data("mesh/mixed_v42_binary.vtk")),
+            SceneKind::Tet
+        );
+        let mut scene = open_scene(&vti, &SceneOptions::default()).unwrap();
+        let data = scene.data();
+        assert_eq!(data.field(), Some("temperature"));
+        assert_eq!(data.field_names(), vec!["label", "temperature"]);
+        let (_, hi) = scene.value_range().unwrap();
+        scene.data_mut().set_field("label").unwrap();
+        assert_eq!(scene.data().field(), Some("label"));
+        let (_, hi_label) = scene.value_range().unwrap();
+        // `label` is the u8 copy of 1.5 × `temperature`.
+        assert_eq!(hi_label, (hi * 1.5).floor());
+        assert!(
+            scene.describe().contains("array \"label\""),
+            "{}",
+            scene.describe()
+        );
+        let e = scene.data_mut().set_field("velocity").unwrap_err();
+        assert!(e.to_string().contains("temperature"), "{e}");
+        // A grid without named arrays has none to switch to.
+        let mha = open_scene(
+            &image_data("metaimage/float_zlib.mha"),
+            &SceneOptions::default(),
+        )
+        .unwrap();
+        assert!(mha.data().field_names().is_empty());
     }
 
     #[test]

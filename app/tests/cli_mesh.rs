@@ -334,11 +334,17 @@ fn bad_meshes_and_flags_give_clear_errors() {
     let e = fails(&["render", s(&mesh), "--level-timeout", "1", "-o", s(&out)]);
     assert!(e.contains(".isot"), "{e}");
 
-    // A volume does not take mesh flags.
+    // A volume does not take mesh flags, nor a --field (a NRRD has no named arrays; VTK
+    // image data does).
     let vol = dir.path().join("v.nrrd");
     ok(&["generate", "sphere", "--size", "8", "-o", s(&vol)]);
-    let e = fails(&["render", s(&vol), "--field", "distance", "-o", s(&out)]);
+    let e = fails(&["render", s(&vol), "--bvh", "sah", "-o", s(&out)]);
     assert!(e.contains("tetrahedral meshes"), "{e}");
+    let e = fails(&["render", s(&vol), "--field", "distance", "-o", s(&out)]);
+    assert!(
+        e.contains("named point arrays") && e.contains("v.nrrd"),
+        "{e}"
+    );
 
     // Garbage and truncated files name the file.
     let bad = dir.path().join("bad.vtu");

@@ -266,3 +266,62 @@ fn bench_iso_sweep_changes_the_isovalue_every_frame() {
     assert!(w["max_ratio"].as_f64().unwrap() >= w["median_ratio"].as_f64().unwrap());
     assert!(w["build_ms"].as_f64().unwrap() > 0.0);
 }
+
+/// Every twin listed in `formats/tests/data/<format>/truth.json`: the file to open (a
+/// pattern for numbered TIFF slices), its NRRD twin (same voxels and geometry, written by
+/// pynrrd) and an isovalue.
+fn image_twins() -> Vec<(std::path::PathBuf, std::path::PathBuf, f64)> {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../formats/tests/data");
+    let mut twins = Vec::new();
+    for folder in ["metaimage", "vtk_image", "tiff"] {
+        let dir = data.join(folder);
+        let text = std::fs::read_to_string(dir.join("truth.json")).unwrap();
+        let entries: serde_json::Value = serde_json::from_str(&text).unwrap();
+        for e in entries.as_array().unwrap() {
+            if let Some(twin) = e["twin"].as_str() {
+                twins.push((
+                    dir.join(e["open"].as_str().unwrap()),
+                    dir.join(twin),
+                    e["iso"].as_f64().unwrap(),
+                ));
+            }
+        }
+    }
+    twins
+}
+
+#[test]
+fn image_formats_render_like_their_nrrd_twins() {
+    // MetaImage (oblique, compressed, permuted, flipped), VTK XML and legacy images, TIFF
+    // stacks and numbered slices: the same depth image as the NRRD of the same voxels and
+    // geometry, from the same default camera (which follows the world bounds).
+    let dir = tempfile::tempdir().unwrap();
+    let twins = image_twins();
+    assert!(twins.len() >= 8, "{} twins", twins.len());
+    let depth = |file: &Path, iso: f64, name: &str| {
+        let npy = dir.path().join(format!("{name}.npy"));
+        let png = dir.path().join(format!("{name}.png"));
+        ok(&[
+            "render",
+            s(file),
+            "--iso",
+            &iso.to_string(),
+            "--size",
+            "40x30",
+            "-o",
+            s(&png),
+            "--depth-out",
+            s(&npy),
+        ]);
+        isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap())
+            .unwrap()
+            .1
+    };
+    for (i, (file, twin, iso)) in twins.iter().enumerate() {
+        let a = depth(file, *iso, &format!("a{i}"));
+        let b = depth(twin, *iso, &format!("b{i}"));
+        let hits = a.iter().filter(|d| d.is_finite()).count();
+        assert!(hits > 50, "{}: only {hits} pixels hit", file.display());
+        assert_eq!(a, b, "{} and its twin {}", file.display(), twin.display());
+    }
+}

@@ -5,7 +5,8 @@
 //! damage it carries, and what is expected. It covers every reader of `formats`: NRRD
 //! (attached and detached, every encoding, `LIST` and printf-pattern data files), raw voxels
 //! with a `.json` sidecar, numbered time series, legacy VTK, VTU (every encoding), PVD,
-//! Gmsh 2.2 and 4.1 (ASCII and binary), TetGen and `.isot`.
+//! Gmsh 2.2 and 4.1 (ASCII and binary), TetGen, `.isot`, and (in `hostile/images.rs`)
+//! MetaImage, VTK image data and TIFF stacks.
 //!
 //! ## The truth is the construction
 //! Whether a case is valid is decided here, by how the file was built, never by what a
@@ -33,6 +34,8 @@
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
+
+mod images;
 
 /// The files of one case: (name inside the case's folder, what to put there).
 type Files = Vec<(String, Entry)>;
@@ -62,10 +65,17 @@ pub enum Reader {
     TetGen,
     /// `.isot` treelet files.
     Isot,
+    /// MetaImage `.mha` / `.mhd` (local, detached, pattern, `LIST`; raw and zlib; 4D).
+    MetaImage,
+    /// VTK image data: `.vti` (every encoding) and legacy `.vtk` structured points and
+    /// rectilinear grids.
+    VtkImage,
+    /// TIFF stacks (multi-page, numbered 2D slices).
+    Tiff,
 }
 
 impl Reader {
-    pub const ALL: [Reader; 11] = [
+    pub const ALL: [Reader; 14] = [
         Reader::Nrrd,
         Reader::NrrdDetached,
         Reader::RawSidecar,
@@ -77,6 +87,9 @@ impl Reader {
         Reader::Gmsh41,
         Reader::TetGen,
         Reader::Isot,
+        Reader::MetaImage,
+        Reader::VtkImage,
+        Reader::Tiff,
     ];
 
     pub const fn name(self) -> &'static str {
@@ -92,6 +105,9 @@ impl Reader {
             Reader::Gmsh41 => "Gmsh 4.1",
             Reader::TetGen => "TetGen",
             Reader::Isot => ".isot",
+            Reader::MetaImage => "MetaImage",
+            Reader::VtkImage => "VTK image",
+            Reader::Tiff => "TIFF",
         }
     }
 }
@@ -2586,7 +2602,7 @@ fn vtu_cases(c: &mut Corpus) -> std::io::Result<()> {
         (
             "compressor_unknown",
             Kind::BadStream,
-            z.replace_first("vtkZLibDataCompressor", "vtkLZ4DataCompressor"),
+            z.replace_first("vtkZLibDataCompressor", "vtkLZMADataCompressor"),
         ),
         (
             "points_nan",
@@ -3683,6 +3699,9 @@ pub fn write_corpus(dir: &Path) -> std::io::Result<Vec<Case>> {
     gmsh_cases(&mut c, true)?;
     tetgen_cases(&mut c)?;
     isot_cases(&mut c)?;
+    images::metaimage_cases(&mut c)?;
+    images::vtk_image_cases(&mut c)?;
+    images::tiff_cases(&mut c)?;
     for (case, name) in REFERENCED {
         let c = c
             .cases
@@ -3713,6 +3732,8 @@ const REFERENCED: &[(&str, &str)] = &[
     ("pvd_step_non_utf8", "s_\u{fffd}.vtu"),
     ("pvd_long_file_name", "sss"),
     ("tetgen_ele_missing", "t.ele"),
+    ("mhd_missing_data_file", "gone.raw"),
+    ("mhd_pattern_missing_slice", "s2.raw"),
 ];
 
 #[cfg(test)]

@@ -334,6 +334,108 @@ pub fn isot(data: &[u8]) -> Outcome {
     }
 }
 
+// ---------------------------------------------------------------- image formats
+
+/// A dataset's volumes: each step (at most 8) has the first step's dims.
+fn check_dataset(d: &formats::Dataset) {
+    match d {
+        formats::Dataset::Volume(v) => check_volume(v),
+        formats::Dataset::Series(s) => {
+            let dims = s.first().dims();
+            check_volume(s.first());
+            for i in 0..s.step_count().min(8) {
+                if let Ok(v) = s.step(i) {
+                    check_volume(&v);
+                    assert_eq!(v.dims(), dims, "step {i}");
+                }
+            }
+        }
+    }
+}
+
+/// `metaimage`: a MetaImage through `formats::metaimage::read_metaimage` (header, data
+/// files, raw and zlib, `HeaderSize`, 4D steps). If the header parses and names detached
+/// data files inside the scratch directory (a file name, a pattern, a `LIST`), the bytes
+/// after the header are divided evenly among them (at most [`MAX_DATA_FILES`]) and the
+/// header goes to `h.mhd`; otherwise the whole input is `a.mha`.
+pub fn metaimage(data: &[u8]) -> Outcome {
+    let dir = scratch_dir("metaimage");
+    let parsed = formats::metaimage::parse_header(Path::new("fuzz.mhd"), data).ok();
+    let mut written = Vec::new();
+    let detached = parsed
+        .as_ref()
+        .filter(|h| h.data_file != formats::metaimage::DataFile::Local);
+    let path = if let Some(header) = detached {
+        let path = dir.join("h.mhd");
+        let files = formats::metaimage::data_file_paths(header, &path);
+        let ours: Vec<_> = files
+            .iter()
+            .filter(|f| f.parent() == Some(dir.as_path()))
+            .take(MAX_DATA_FILES)
+            .collect();
+        let rest = &data[header.header_len.min(data.len())..];
+        let per = rest.len() / ours.len().max(1);
+        for (i, f) in ours.iter().enumerate() {
+            let chunk = if i + 1 == ours.len() {
+                &rest[i * per..]
+            } else {
+                &rest[i * per..(i + 1) * per]
+            };
+            if std::fs::write(f, chunk).is_ok() {
+                written.push((*f).clone());
+            }
+        }
+        std::fs::write(&path, &data[..header.header_len.min(data.len())]).expect("write h.mhd");
+        path
+    } else {
+        let path = dir.join("a.mha");
+        std::fs::write(&path, data).expect("write a.mha");
+        path
+    };
+    let result = formats::metaimage::read_metaimage(&path).map(|d| check_dataset(&d));
+    for f in written {
+        let _ = std::fs::remove_file(f);
+    }
+    result.map_err(err)
+}
+
+/// `vti`: VTK image data from memory: legacy `.vtk` images (input starting `# vtk`) through
+/// `formats::vtk_image::legacy::parse`, anything else through `vti::parse` (the XML walk,
+/// every encoding, zlib and LZ4 blocks); the default array, then the array list.
+pub fn vti(data: &[u8]) -> Outcome {
+    use formats::vtk_image::{legacy, vti};
+    let legacy_file = data.starts_with(b"# vtk");
+    let path = Path::new(if legacy_file { "fuzz.vtk" } else { "fuzz.vti" });
+    let volume = if legacy_file {
+        legacy::parse(path, data, None)
+    } else {
+        vti::parse(path, data, None)
+    }
+    .map_err(err)?;
+    check_volume(&volume);
+    let arrays = if legacy_file {
+        legacy::point_arrays(path, data)
+    } else {
+        vti::point_arrays(path, data)
+    }
+    .map_err(err)?;
+    assert!(arrays.default_name().is_some());
+    Ok(())
+}
+
+/// `tiff`: a TIFF from memory through `formats::tiff::parse_tiff` (every page, the size and
+/// sample-type checks, ImageJ frames as steps).
+pub fn tiff(data: &[u8]) -> Outcome {
+    let d = formats::tiff::parse_tiff(
+        Path::new("fuzz.tif"),
+        data,
+        &formats::OpenOptions::default(),
+    )
+    .map_err(err)?;
+    check_dataset(&d);
+    Ok(())
+}
+
 // ---------------------------------------------------------------- camera JSON
 
 /// `camera_json`: a camera file as `isoscope render --camera` loads it (`load_camera` in

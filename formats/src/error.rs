@@ -128,6 +128,21 @@ pub enum FormatError {
     /// The file's kind could not be determined, or it is not something `open` reads.
     #[error("{}: {reason}", path.display())]
     UnknownFormat { path: PathBuf, reason: String },
+    /// A page (image) of a multi-page file (TIFF) that cannot be read or does not fit the
+    /// others (size, sample type); pages count from 0.
+    #[error("{}: page {page}: {reason}", path.display())]
+    Page {
+        path: PathBuf,
+        page: usize,
+        reason: String,
+    },
+    /// A named data array (VTK image data) that is missing, not a scalar, or does not decode.
+    #[error("{}: array \"{name}\": {reason}", path.display())]
+    Array {
+        path: PathBuf,
+        name: String,
+        reason: String,
+    },
 }
 
 impl FormatError {
@@ -151,6 +166,8 @@ impl FormatError {
             | FormatError::Sidecar { path, .. }
             | FormatError::Series { path, .. }
             | FormatError::UnknownFormat { path, .. }
+            | FormatError::Array { path, .. }
+            | FormatError::Page { path, .. }
             | FormatError::OutputIsInput { path, .. }
             | FormatError::OutputExists { path }
             | FormatError::BadOutput { path, .. } => path,

@@ -9,6 +9,11 @@
 //! - [`nrrd`]: NRRD as Teem writes it (NRRD0001–0005, every type alias, raw/gzip/bzip2/ascii/hex,
 //!   attached and detached headers, `LIST` and printf data files, skips, orientation) and the
 //!   NRRD writer (raw, gzip).
+//! - [`metaimage`]: MetaImage `.mha`/`.mhd` (ITK), 3D or 4D, raw (memory-mapped) or zlib,
+//!   local, detached, pattern and `LIST` data files, oriented, LPS world.
+//! - [`vtk_image`]: VTK image data, XML `.vti` (every encoding VTK writes) and legacy `.vtk`
+//!   structured points and rectilinear grids (a `.vtk` is a grid or a mesh by its `DATASET`).
+//! - [`tiff`]: TIFF stacks, multi-page or numbered 2D slices, ImageJ spacing and frames.
 //! - [`series`]: time series from numbered files (`vol_%03d.nrrd`, `vol_*.nrrd`), loaded
 //!   lazily through [`volume_core::series::StepLoader`] (4D NRRD: [`nrrd::NrrdSteps`]).
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
@@ -30,11 +35,15 @@
 pub mod error;
 pub mod input;
 pub mod mesh;
+pub mod metaimage;
 pub mod nrrd;
+mod oriented;
 pub mod output;
 pub mod raw;
 pub mod series;
+pub mod tiff;
 pub mod treelet;
+pub mod vtk_image;
 
 pub use error::FormatError;
 
@@ -84,16 +93,64 @@ impl Dataset {
 #[derive(Default, Clone, Debug)]
 pub struct OpenOptions {
     pub raw: Option<raw::RawLayout>,
+    /// Sample spacing for axes a file does not record (TIFF stacks; `--spacing` without the
+    /// other raw flags). Refused for files that record their spacing.
+    pub spacing: Option<[f64; 3]>,
+    /// The point array to read from files with several (VTK image data; `--field`); `None`:
+    /// the active scalars, else the first. Refused for files without named arrays.
+    pub field: Option<String>,
 }
 
-/// Opens any supported rectilinear file by extension and content: `.nrrd`, `.nhdr`, raw files
-/// with `options.raw` or a `NAME.json` sidecar, and numbered series (`vol_%03d.nrrd`, or a
-/// glob such as `vol_*.nrrd`, when no file of that literal name exists).
+/// Opens any supported rectilinear file by extension and content: `.nrrd`, `.nhdr`, `.mha`,
+/// `.mhd`, `.vti`, legacy `.vtk` images, `.tif`/`.tiff`, raw files with `options.raw` or a
+/// `NAME.json` sidecar, and numbered series (`vol_%03d.nrrd`, or a glob such as
+/// `vol_*.nrrd`, when no file of that literal name exists). Numbered single-page TIFF files
+/// are the slices of one volume, not a series.
 pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> {
     if !path.exists() && series::is_pattern(path) {
+        let files = series::expand_pattern(path)?;
+        if tiff::is_slice_stack(&files)? {
+            refuse_unused(
+                &files[0],
+                &OpenOptions {
+                    spacing: None,
+                    ..options.clone()
+                },
+                false,
+            )?;
+            for f in &files {
+                input::note_input(f);
+            }
+            return tiff::read_slices(&files, options).map(Dataset::Volume);
+        }
         return series::open_file_series(path, options).map(Dataset::Series);
     }
     open_file(path, options)
+}
+
+/// Refuses the options a self-describing format has no use for (a flag that would otherwise
+/// be ignored silently).
+fn refuse_unused(path: &Path, options: &OpenOptions, field: bool) -> Result<(), FormatError> {
+    if !field && let Some(f) = &options.field {
+        return Err(FormatError::Unsupported {
+            path: path.to_path_buf(),
+            field: "--field".into(),
+            reason: format!(
+                "\"{f}\": only files with named point arrays (VTK image data .vti/.vtk, \
+                 meshes) have arrays to choose from"
+            ),
+        });
+    }
+    if options.spacing.is_some() {
+        return Err(FormatError::Unsupported {
+            path: path.to_path_buf(),
+            field: "--spacing".into(),
+            reason: "the file records its own spacing (--spacing applies to raw files and \
+                     to TIFF stacks)"
+                .into(),
+        });
+    }
+    Ok(())
 }
 
 /// Opens one file (no pattern expansion).
@@ -105,9 +162,52 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        refuse_unused(path, options, false)?;
         return nrrd::read_nrrd(path);
     }
+    if name.ends_with(".mha") || name.ends_with(".mhd") {
+        refuse_unused(path, options, false)?;
+        return metaimage::read_metaimage(path);
+    }
+    if name.ends_with(".vti") || name.ends_with(".vtk") {
+        refuse_unused(path, options, true)?;
+        if name.ends_with(".vtk") && !vtk_image::is_legacy_image(path) {
+            // Read the file (a missing or special file is named by its own error).
+            input::check_regular(path).map_err(|e| FormatError::io(path, e))?;
+            return Err(FormatError::UnknownFormat {
+                path: path.to_path_buf(),
+                reason: match vtk_image::legacy_dataset(path) {
+                    Some(d) => format!(
+                        "DATASET {d}: not an image (STRUCTURED_POINTS or RECTILINEAR_GRID); \
+                         an UNSTRUCTURED_GRID is a tetrahedral mesh, opened as one by \
+                         `isoscope render`, `info` and the viewer"
+                    ),
+                    None => "not a legacy VTK file with a DATASET line in its first 4 KiB".into(),
+                },
+            });
+        }
+        return vtk_image::read(path, options.field.as_deref()).map(Dataset::Volume);
+    }
+    if tiff::is_tiff_path(path) {
+        refuse_unused(
+            path,
+            &OpenOptions {
+                spacing: None,
+                ..options.clone()
+            },
+            false,
+        )?;
+        return tiff::read_tiff(path, options);
+    }
     if let Some(layout) = &options.raw {
+        refuse_unused(
+            path,
+            &OpenOptions {
+                spacing: None,
+                ..options.clone()
+            },
+            false,
+        )?;
         return raw::read_raw(path, layout).map(Dataset::Volume);
     }
     if name.ends_with(".nii") || name.ends_with(".nii.gz") {
@@ -122,6 +222,8 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         && !name.ends_with(".json")
     {
         let layout = raw::RawLayout::from_sidecar(&side)?;
+        // The sidecar gives the spacing: a --spacing would be ignored.
+        refuse_unused(path, options, false)?;
         return raw::read_raw(path, &layout).map(Dataset::Volume);
     }
     // Sniff: a NRRD under another name.
@@ -129,12 +231,25 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
     let file = input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
     let n = std::io::Read::read(&mut &file, &mut magic).map_err(|e| FormatError::io(path, e))?;
     if n == 4 && &magic == b"NRRD" {
+        refuse_unused(path, options, false)?;
         return nrrd::read_nrrd(path);
+    }
+    if n == 4 && (&magic == b"II*\0" || &magic == b"MM\0*" || &magic == b"II+\0") {
+        refuse_unused(
+            path,
+            &OpenOptions {
+                spacing: None,
+                ..options.clone()
+            },
+            false,
+        )?;
+        return tiff::read_tiff(path, options);
     }
     Err(FormatError::UnknownFormat {
         path: path.to_path_buf(),
-        reason: "unknown file type: expected .nrrd/.nhdr, or a raw file with --dims/--type/\
-                 --endian/--spacing or a NAME.json sidecar"
+        reason: "unknown file type: expected .nrrd/.nhdr, .mha/.mhd, .vti, a legacy .vtk \
+                 image, .tif/.tiff, or a raw file with --dims/--type/--endian/--spacing or a \
+                 NAME.json sidecar"
             .into(),
     })
 }

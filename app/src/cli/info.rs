@@ -27,9 +27,11 @@ pub const HISTOGRAM_BINS: usize = 64;
 /// Arguments of `isoscope info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), a
-    /// time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral mesh (.vtk,
-    /// .vtu, .msh, .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an .isot file.
+    /// Volume file: .nrrd/.nhdr, .mha/.mhd, .vti, a legacy .vtk image, .tif/.tiff (or numbered
+    /// 2D slices such as 'slice_*.tif'), a raw file (with the raw flags or a NAME.json
+    /// sidecar), a time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral
+    /// mesh (.vtk, .vtu, .msh, .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an
+    /// .isot file.
     pub file: PathBuf,
     /// Print machine-readable JSON (a stable interface, see docs/cli.md).
     #[arg(long)]
@@ -93,6 +95,10 @@ pub struct InfoReport {
     pub histogram: Option<HistogramReport>,
     /// True when the voxels are viewed in place in a memory-mapped file (no copy).
     pub memory_mapped: bool,
+    /// VTK image data: the scalar point arrays `--field` can choose (empty for other files).
+    pub arrays: Vec<String>,
+    /// VTK image data: the array reported (and drawn by default); `null` for other files.
+    pub array: Option<String>,
 }
 
 /// The source of the steps: one volume or a lazily loaded series.
@@ -136,6 +142,16 @@ fn merge(a: ValueStats, b: ValueStats) -> ValueStats {
 
 /// Opens `path` and gathers the report.
 pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<InfoReport> {
+    let (arrays, array) = if formats::vtk_image::is_image_file(path) {
+        let a = formats::vtk_image::point_arrays(path)?;
+        let chosen = options
+            .field
+            .clone()
+            .or_else(|| a.default_name().map(str::to_owned));
+        (a.scalar_names(), chosen)
+    } else {
+        (Vec::new(), None)
+    };
     let dataset = {
         let _spinner = Progress::spinner(format!("opening {}", path.display()));
         formats::open(path, options)?
@@ -230,6 +246,8 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
         time_values,
         histogram,
         memory_mapped: first.data.is_shared(),
+        arrays,
+        array,
     })
 }
 
@@ -328,6 +346,13 @@ pub fn render_text(r: &InfoReport) -> String {
         None => {
             let _ = writeln!(out, "world frame:  {}", r.world_frame);
         }
+    }
+    if let Some(a) = &r.array {
+        let _ = writeln!(
+            out,
+            "array:        {a}  (of {}; choose with --field)",
+            r.arrays.join(", ")
+        );
     }
     if let Some(m) = &r.value_map {
         let _ = writeln!(
@@ -673,6 +698,13 @@ pub fn gather_any(path: &Path, open: &OpenArgs) -> anyhow::Result<AnyInfo> {
             path.display()
         );
     }
+    if kind != SceneKind::Grid && open.field.is_some() {
+        bail!(
+            "--field chooses the array of VTK image data; info lists every array of a mesh, \
+             and {} is a {kind} file",
+            path.display()
+        );
+    }
     Ok(match kind {
         SceneKind::Grid => AnyInfo::Grid(gather(path, &open.open_options()?)?),
         SceneKind::Tet => AnyInfo::Tet(gather_mesh(path)?),
@@ -727,6 +759,8 @@ mod tests {
                 counts: vec![20, 0, 3],
             }),
             memory_mapped: false,
+            arrays: vec!["temperature".into(), "label".into()],
+            array: Some("temperature".into()),
         }
     }
 
@@ -740,6 +774,8 @@ mod tests {
         assert!(j["world_from_grid"].is_null());
         assert_eq!(j["world_frame"], "LPS");
         assert_eq!(j["axis_labels"], serde_json::json!(["L", "P", "S"]));
+        assert_eq!(j["arrays"], serde_json::json!(["temperature", "label"]));
+        assert_eq!(j["array"], "temperature");
         assert_eq!(
             j["value_map"],
             serde_json::json!({"slope": 1.0, "intercept": -1024.0})

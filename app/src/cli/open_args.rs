@@ -1,16 +1,20 @@
 //! Command-line flags for opening volume files, shared by the subcommands (`#[command(flatten)]`).
 //!
-//! Files that describe themselves (NRRD, series patterns, raw files with a `NAME.json` sidecar,
-//! read by `formats`) need no flags. A headerless raw file needs its layout:
-//! `--dims 256x256x108 --type i16 --endian little --spacing 0.957,0.957,1.5 --header-bytes 0
-//! [--origin x,y,z]`. `--dims` and `--type` are required together; `--endian` is required for
-//! multi-byte types (guessing it silently gives a wrong picture); spacing defaults to 1,
-//! header bytes and origin to 0.
+//! Files that describe themselves (NRRD, MetaImage, VTK images, TIFF, series patterns, raw
+//! files with a `NAME.json` sidecar, read by `formats`) need no flags. A headerless raw file
+//! needs its layout: `--dims 256x256x108 --type i16 --endian little --spacing 0.957,0.957,1.5
+//! --header-bytes 0 [--origin x,y,z]`. `--dims` and `--type` are required together; `--endian`
+//! is required for multi-byte types (guessing it silently gives a wrong picture); spacing
+//! defaults to 1, header bytes and origin to 0. `--spacing` alone gives the spacing of the
+//! axes a TIFF stack does not record.
 //!
-//! [`MeshArgs`] (tetrahedral meshes: `--field`, `--bvh`, `--leaf-size`, `--packet`,
-//! `--normals`) and [`OocArgs`] (`.isot` files: `--level-timeout`, `--budget-mb`) are shared by
-//! `render` and `bench`; [`scene_options`] turns them into [`crate::scene::SceneOptions`] and
-//! rejects flags that do not apply to the kind of file opened.
+//! `--field NAME` (here, for every subcommand that opens files) picks the point array of a
+//! file that has several: a tetrahedral mesh, or VTK image data.
+//!
+//! [`MeshArgs`] (tetrahedral meshes: `--bvh`, `--leaf-size`, `--packet`, `--normals`) and
+//! [`OocArgs`] (`.isot` files: `--level-timeout`, `--budget-mb`) are shared by `render` and
+//! `bench`; [`scene_options`] turns them into [`crate::scene::SceneOptions`] and rejects flags
+//! that do not apply to the kind of file opened.
 
 use std::path::Path;
 use std::time::Duration;
@@ -45,10 +49,15 @@ pub struct OpenArgs {
     /// Raw files: position of voxel (0,0,0), e.g. -120,-120,0 (default 0,0,0).
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true, help_heading = "Raw files")]
     pub origin: Option<[f64; 3]>,
+    /// The point array to draw, for files with several: tetrahedral meshes and VTK image data
+    /// (default: the mesh's first array; an image's active scalars, else its first array;
+    /// `isoscope info` lists them).
+    #[arg(long, value_name = "NAME")]
+    pub field: Option<String>,
 }
 
 impl OpenArgs {
-    /// True if any raw flag was given.
+    /// True if any raw flag was given (`--field` is not one).
     pub fn any(&self) -> bool {
         self.dims.is_some()
             || self.voxel_type.is_some()
@@ -58,10 +67,24 @@ impl OpenArgs {
             || self.origin.is_some()
     }
 
+    /// True if a raw flag other than `--spacing` was given (`--spacing` alone also serves
+    /// TIFF stacks).
+    fn any_layout(&self) -> bool {
+        self.dims.is_some()
+            || self.voxel_type.is_some()
+            || self.endian.is_some()
+            || self.header_bytes.is_some()
+            || self.origin.is_some()
+    }
+
     /// The `formats` options these flags describe.
     pub fn open_options(&self) -> anyhow::Result<formats::OpenOptions> {
-        if !self.any() {
-            return Ok(formats::OpenOptions::default());
+        if !self.any_layout() {
+            return Ok(formats::OpenOptions {
+                spacing: self.spacing,
+                field: self.field.clone(),
+                ..formats::OpenOptions::default()
+            });
         }
         let (Some(dims), Some(voxel_type)) = (self.dims, self.voxel_type) else {
             bail!("raw files need both --dims and --type (e.g. --dims 256x256x108 --type i16)");
@@ -83,16 +106,15 @@ impl OpenArgs {
                 spacing: self.spacing.unwrap_or([1.0; 3]),
                 origin: self.origin.unwrap_or([0.0; 3]),
             }),
+            spacing: None,
+            field: self.field.clone(),
         })
     }
 }
 
-/// Flags for tetrahedral meshes (rejected for other files).
+/// Flags for tetrahedral meshes (rejected for other files; `--field` is in [`OpenArgs`]).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct MeshArgs {
-    /// Meshes: the point array to draw (default: the first one; `isoscope info` lists them).
-    #[arg(long, value_name = "NAME", help_heading = "Tetrahedral meshes")]
-    pub field: Option<String>,
     /// Meshes: BVH builder, bih (spatial median, fast; default) or sah (binned SAH).
     #[arg(long, value_name = "bih|sah", value_parser = parse_bvh, help_heading = "Tetrahedral meshes")]
     pub bvh: Option<BvhBuilder>,
@@ -112,8 +134,7 @@ pub struct MeshArgs {
 impl MeshArgs {
     /// True if any mesh flag was given.
     pub fn any(&self) -> bool {
-        self.field.is_some()
-            || self.bvh.is_some()
+        self.bvh.is_some()
             || self.leaf_size.is_some()
             || self.packet.is_some()
             || self.normals.is_some()
@@ -196,7 +217,13 @@ pub fn scene_options(
     };
     if kind != SceneKind::Tet && mesh.any() {
         bail!(
-            "--field, --bvh, --leaf-size, --packet and --normals apply to tetrahedral meshes; {} is {what}",
+            "--bvh, --leaf-size, --packet and --normals apply to tetrahedral meshes; {} is {what}",
+            file.display()
+        );
+    }
+    if kind == SceneKind::Ooc && open.field.is_some() {
+        bail!(
+            "--field applies to meshes and VTK image data; {} is {what}",
             file.display()
         );
     }
@@ -215,7 +242,7 @@ pub fn scene_options(
     Ok(SceneOptions {
         open: open.open_options()?,
         step: step.unwrap_or(0),
-        field: mesh.field.clone(),
+        field: open.field.clone(),
         intersector,
         bvh: mesh.bvh_options()?,
         normals: mesh.normals.unwrap_or_default(),
@@ -296,6 +323,7 @@ mod tests {
             spacing: Some([0.5, 0.5, 2.0]),
             header_bytes: Some(16),
             origin: Some([-1.0, 0.0, 3.0]),
+            field: None,
         };
         let l = a.open_options().unwrap().raw.unwrap();
         assert_eq!(l.dims, [4, 5, 6]);
@@ -304,6 +332,28 @@ mod tests {
         assert_eq!(l.header_bytes, 16);
         assert_eq!(l.spacing, [0.5, 0.5, 2.0]);
         assert_eq!(l.origin, [-1.0, 0.0, 3.0]);
+    }
+
+    #[test]
+    fn spacing_alone_and_field_pass_through_without_a_layout() {
+        let a = OpenArgs {
+            spacing: Some([0.5, 0.5, 2.0]),
+            field: Some("temperature".into()),
+            ..OpenArgs::default()
+        };
+        let o = a.open_options().unwrap();
+        assert!(o.raw.is_none());
+        assert_eq!(o.spacing, Some([0.5, 0.5, 2.0]));
+        assert_eq!(o.field.as_deref(), Some("temperature"));
+        // With a layout, the spacing is the layout's.
+        let b = OpenArgs {
+            dims: Some([2, 2, 2]),
+            voxel_type: Some(VoxelType::U8),
+            ..a
+        };
+        let o = b.open_options().unwrap();
+        assert_eq!(o.raw.unwrap().spacing, [0.5, 0.5, 2.0]);
+        assert!(o.spacing.is_none());
     }
 
     #[test]
@@ -346,7 +396,7 @@ mod tests {
     #[test]
     fn flags_for_another_kind_of_file_are_rejected() {
         let mesh = MeshArgs {
-            field: Some("p".into()),
+            bvh: Some(BvhBuilder::Sah),
             ..MeshArgs::default()
         };
         let e = scene_options(

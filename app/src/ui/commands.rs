@@ -185,9 +185,17 @@ impl ViewerApp {
                 self.open_path(p.clone(), Some(vec![p]));
             }
             FileGroup::Series { pattern, steps } => {
+                // Numbered 2D TIFF files are the slices of one volume (formats::open).
+                let slices = formats::series::expand_pattern(&pattern)
+                    .is_ok_and(|f| formats::tiff::is_slice_stack(&f).unwrap_or(false));
                 self.notify(
                     format!(
-                        "opening {steps} files as a time series ({})",
+                        "opening {steps} files as {} ({})",
+                        if slices {
+                            "the slices of one volume"
+                        } else {
+                            "a time series"
+                        },
                         pattern.display()
                     ),
                     false,

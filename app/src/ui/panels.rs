@@ -103,7 +103,9 @@ pub fn data_ui(
                         }
                     })
                     .response
-                    .on_hover_text("the mesh's scalar point array the isosurfaces are drawn of");
+                    .on_hover_text(
+                        "the scalar point array the isosurfaces are drawn of (meshes, VTK images)",
+                    );
                 if &chosen != current {
                     commands.push(Command::SetField(chosen));
                 }

@@ -136,6 +136,56 @@ def isot_seeds(isoscope):
     os.rmdir(tmp)
 
 
+def image_seeds(data_dir):
+    """MetaImage, VTK image and TIFF seeds: the reader test files (written by SimpleITK, VTK,
+    tifffile, Pillow; see tests/data/*/README.md) as ok_ seeds, detached MetaImage headers
+    joined to their data as the `metaimage` harness splits them, and a few damaged ones.
+    The same inputs start the committed corpora (corpus/<target>/, named by SHA-1 as
+    libFuzzer names its inputs) until a campaign's cmin.sh replaces them."""
+    import hashlib
+    import shutil
+
+    def seed(target, name, data):
+        put(target, name, data)
+        d = os.path.join(HERE, "..", "corpus", target)
+        os.makedirs(d, exist_ok=True)
+        with open(os.path.join(d, hashlib.sha1(data).hexdigest()), "wb") as f:
+            f.write(data)
+
+    def read(*p):
+        return open(os.path.join(data_dir, *p), "rb").read()
+
+    for target in ("metaimage", "vti", "tiff"):
+        shutil.rmtree(os.path.join(HERE, "..", "corpus", target), ignore_errors=True)
+        shutil.rmtree(os.path.join(HERE, target), ignore_errors=True)
+    for f in ("oblique_i16.mha", "float_zlib.mha", "bigendian_i32.mha", "series_4d.mha"):
+        seed("metaimage", "ok_" + f, read("metaimage", f))
+    for hdr, data in (("sagittal_u8.mhd", "sagittal_u8.raw"), ("flipped_u16.mhd", "flipped_u16.zraw"),
+                      ("headersize_end.mhd", "headersize_end.raw"), ("headersize_16.mhd", "headersize_16.raw")):
+        seed("metaimage", "ok_" + hdr, read("metaimage", hdr) + read("metaimage", data))
+    # A 2-slice pattern and a LIST of plain 2 x 2 x 2 u8 data.
+    two = bytes(range(8))
+    head = "NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+    seed("metaimage", "ok_pattern.mhd", (head + "ElementDataFile = s%d.raw 0 1 1\n").encode() + two)
+    seed("metaimage", "ok_list.mhd", (head + "ElementDataFile = LIST\na.raw\nb.raw\n").encode() + two)
+    mha = read("metaimage", "float_zlib.mha")
+    seed("metaimage", "bad_zlib_cut.mha", mha[: len(mha) - 100])
+    seed("metaimage", "bad_dims_huge.mha", mha.replace(b"DimSize = 10 8 6", b"DimSize = 99999 99999 99999"))
+    seed("metaimage", "bad_type.mha", mha.replace(b"MET_FLOAT", b"MET_STRING"))
+    for f in sorted(os.listdir(os.path.join(data_dir, "vtk_image"))):
+        if f.endswith(".vti") or f.endswith(".vtk"):
+            seed("vti", "ok_" + f, read("vtk_image", f))
+    vti = read("vtk_image", "appended_lz4.vti")
+    seed("vti", "bad_lz4_cut.vti", vti[: len(vti) - 700])
+    seed("vti", "bad_extent.vti", vti.replace(b"2 11 -1 6 0 5", b"2 11 -1 6 0 9"))
+    for f in sorted(os.listdir(os.path.join(data_dir, "tiff"))):
+        if f.endswith(".tif"):
+            seed("tiff", "ok_" + f, read("tiff", f))
+    seed("tiff", "ok_slice.tif", read("tiff", "slices", "slice_000.tif"))
+    tif = read("tiff", "deflate_i32.tif")
+    seed("tiff", "bad_cut.tif", tif[: len(tif) // 2])
+
+
 if __name__ == "__main__":
     mesh_dir = os.path.join(HERE, "..", "..", "tests", "data", "mesh")
     nrrd_seeds()
@@ -143,5 +193,6 @@ if __name__ == "__main__":
     tetgen_seeds(mesh_dir)
     pvd_seeds()
     camera_seeds()
+    image_seeds(os.path.join(HERE, "..", "..", "tests", "data"))
     if len(sys.argv) > 1:
         isot_seeds(sys.argv[1])

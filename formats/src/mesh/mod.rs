@@ -5,8 +5,9 @@
 //!   [`volume_core::tet::TetMesh`] (points, tets, named point scalars) plus what was skipped.
 //! - Readers, each parsing into the format-neutral [`RawMesh`] first:
 //!   [`vtk_legacy`] (`.vtk` UNSTRUCTURED_GRID 4.x and 5.1, ASCII and big-endian binary),
-//!   [`vtu`] (VTK XML: ascii, inline base64 with or without zlib, appended raw or base64,
-//!   UInt32/UInt64 headers), [`gmsh`] (`.msh` 2.2 and 4.1, ASCII and binary, `$NodeData` as
+//!   [`vtu`] (VTK XML: ascii, inline base64 with or without zlib or LZ4, appended raw or
+//!   base64, UInt32/UInt64 headers; the XML walk and array decoding are shared with the `.vti`
+//!   image reader), [`gmsh`] (`.msh` 2.2 and 4.1, ASCII and binary, `$NodeData` as
 //!   fields), [`tetgen`] (`.node` + `.ele`, node attributes as fields).
 //! - [`RawMesh::into_tet_mesh`] validates every cell's connectivity (an out-of-range index is
 //!   an error naming the cell), splits hexahedra, wedges and pyramids with the crack-free
@@ -37,8 +38,9 @@
 pub mod gmsh;
 pub mod pvd;
 pub mod tetgen;
-mod text;
+pub(crate) mod text;
 pub mod vtk_legacy;
+pub(crate) mod vtk_xml;
 pub mod vtu;
 
 use std::path::{Path, PathBuf};
@@ -90,7 +92,7 @@ pub enum MeshError {
         name: String,
         reason: String,
     },
-    /// Valid in the format but not read here (other dataset types, LZ4 compression, ...).
+    /// Valid in the format but not read here (other dataset types, LZMA compression, ...).
     #[error("{}: unsupported: {what}", path.display())]
     Unsupported { path: PathBuf, what: String },
     /// The parsed mesh is inconsistent (e.g. non-finite coordinates, no tetrahedra).
@@ -512,9 +514,25 @@ impl MeshFormat {
     }
 }
 
-/// Whether `path` has a mesh extension (for dispatch between volume and mesh readers).
+/// Whether `path` is a mesh (for dispatch between volume and mesh readers): a mesh
+/// extension, except a legacy `.vtk` whose `DATASET` is an image (structured points or a
+/// rectilinear grid: a grid, read by [`crate::vtk_image`]). For a series pattern that names
+/// no file, its first match decides.
 pub fn is_mesh_path(path: &Path) -> bool {
-    MeshFormat::from_path(path).is_some()
+    match MeshFormat::from_path(path) {
+        Some(MeshFormat::VtkLegacy) => {
+            let first = if !path.exists() && crate::series::is_pattern(path) {
+                crate::series::expand_pattern(path)
+                    .ok()
+                    .and_then(|f| f.into_iter().next())
+            } else {
+                Some(path.to_path_buf())
+            };
+            !first.is_some_and(|f| crate::vtk_image::is_legacy_image(&f))
+        }
+        Some(_) => true,
+        None => false,
+    }
 }
 
 /// Reads a mesh file of any supported format (by extension). A `.pvd` loads its first step;

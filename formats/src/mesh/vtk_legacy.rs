@@ -35,27 +35,62 @@ pub fn read_raw(path: &Path) -> Result<RawMesh, MeshError> {
 
 /// Parses legacy VTK bytes (`path` only names the source in errors).
 pub fn parse(path: &Path, data: &[u8]) -> Result<RawMesh, MeshError> {
-    let mut p = Parser {
-        c: Cursor::new(path, data),
-        binary: false,
-        version: (4, 2),
-    };
+    let mut p = Parser::new(path, data);
+    p.preamble()?;
     p.parse()
 }
 
-struct Parser<'a> {
-    c: Cursor<'a>,
-    binary: bool,
-    version: (u32, u32),
+/// The tokenizer of legacy VTK files, shared with the structured-points and rectilinear-grid
+/// image reader (`crate::vtk_image`).
+pub(crate) struct Parser<'a> {
+    pub c: Cursor<'a>,
+    pub binary: bool,
+    pub version: (u32, u32),
 }
 
 /// A keyword line split into tokens, with where it started.
-struct Line<'a> {
-    start: usize,
-    words: Vec<&'a str>,
+pub(crate) struct Line<'a> {
+    pub start: usize,
+    pub words: Vec<&'a str>,
 }
 
-fn decode_name(s: &str) -> String {
+/// Array values as read: the big-endian bytes of a binary file (converted by the caller to
+/// the type it keeps), or the numbers of an ASCII file.
+pub(crate) enum Values<'a> {
+    Binary(&'a [u8]),
+    Ascii(Vec<f64>),
+}
+
+impl Values<'_> {
+    pub fn into_f64(self, ty: Scalar) -> Vec<f64> {
+        match self {
+            Values::Binary(bytes) => ty.decode_f64(bytes, true),
+            Values::Ascii(v) => v,
+        }
+    }
+}
+
+/// A POINT_DATA (or FIELD) array with its declared type.
+pub(crate) struct LegacyArray<'a> {
+    pub name: String,
+    /// The keyword that declared it (`SCALARS`, `FIELD`, `VECTORS`, ...).
+    pub keyword: &'static str,
+    pub components: usize,
+    pub ty: Scalar,
+    pub values: Values<'a>,
+}
+
+impl LegacyArray<'_> {
+    fn into_raw(self) -> RawArray {
+        RawArray {
+            name: self.name,
+            components: self.components,
+            values: self.values.into_f64(self.ty),
+        }
+    }
+}
+
+pub(crate) fn decode_name(s: &str) -> String {
     // Legacy names encode spaces and other special bytes as %XX.
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
@@ -94,7 +129,16 @@ fn encode_name(s: &str) -> String {
 }
 
 impl<'a> Parser<'a> {
-    fn parse(&mut self) -> Result<RawMesh, MeshError> {
+    pub fn new(path: &'a Path, data: &'a [u8]) -> Self {
+        Self {
+            c: Cursor::new(path, data),
+            binary: false,
+            version: (4, 2),
+        }
+    }
+
+    /// The three lines before the first keyword: version, title, ASCII or BINARY.
+    pub fn preamble(&mut self) -> Result<(), MeshError> {
         let first = self.c.line().unwrap_or_default();
         let first = String::from_utf8_lossy(first);
         let Some(ver) = first.trim().strip_prefix("# vtk DataFile Version") else {
@@ -131,6 +175,11 @@ impl<'a> Parser<'a> {
                 )));
             }
         }
+        Ok(())
+    }
+
+    /// The unstructured grid after the preamble.
+    fn parse(&mut self) -> Result<RawMesh, MeshError> {
         let mut mesh = RawMesh::new();
         let mut have_dataset = false;
         let mut have_points = false;
@@ -185,7 +234,10 @@ impl<'a> Parser<'a> {
                             ),
                         ));
                     }
-                    self.attributes(n, Some(&mut mesh.arrays))?;
+                    let mut arrays = Vec::new();
+                    self.attributes(n, Some(&mut arrays))?;
+                    mesh.arrays
+                        .extend(arrays.into_iter().map(LegacyArray::into_raw));
                 }
                 "CELL_DATA" => {
                     let n = self.count_word(&line, 1, "CELL_DATA count", 0)?;
@@ -245,7 +297,7 @@ impl<'a> Parser<'a> {
     }
 
     /// The next non-empty line, split into words (`None` at the end of the file).
-    fn keyword_line(&mut self) -> Result<Option<Line<'a>>, MeshError> {
+    pub fn keyword_line(&mut self) -> Result<Option<Line<'a>>, MeshError> {
         self.c.skip_ws();
         let start = self.c.pos;
         let Some(raw) = self.c.line() else {
@@ -263,7 +315,7 @@ impl<'a> Parser<'a> {
         Ok(Some(Line { start, words }))
     }
 
-    fn word<'l>(&self, line: &Line<'l>, i: usize, what: &str) -> Result<&'l str, MeshError> {
+    pub fn word<'l>(&self, line: &Line<'l>, i: usize, what: &str) -> Result<&'l str, MeshError> {
         line.words.get(i).copied().ok_or_else(|| {
             self.c
                 .err_at(line.start, format!("{}: missing {what}", line.words[0]))
@@ -271,7 +323,7 @@ impl<'a> Parser<'a> {
     }
 
     /// Word `i` as a count whose data (`each` values) must fit in the rest of the file.
-    fn count_word(
+    pub fn count_word(
         &self,
         line: &Line<'_>,
         i: usize,
@@ -288,7 +340,7 @@ impl<'a> Parser<'a> {
         Ok(n as usize)
     }
 
-    fn scalar_word(&self, line: &Line<'_>, i: usize) -> Result<Scalar, MeshError> {
+    pub fn scalar_word(&self, line: &Line<'_>, i: usize) -> Result<Scalar, MeshError> {
         let w = self.word(line, i, "data type")?;
         Scalar::from_legacy(w).ok_or_else(|| {
             if w.eq_ignore_ascii_case("bit") || w.eq_ignore_ascii_case("string") {
@@ -306,10 +358,20 @@ impl<'a> Parser<'a> {
     }
 
     /// `n` values of type `ty` as f64 (ASCII tokens or big-endian binary).
-    fn values(&mut self, n: usize, ty: Scalar, what: &str) -> Result<Vec<f64>, MeshError> {
+    pub fn values(&mut self, n: usize, ty: Scalar, what: &str) -> Result<Vec<f64>, MeshError> {
+        Ok(self.raw_values(n, ty, what)?.into_f64(ty))
+    }
+
+    /// `n` values of type `ty`: binary bytes as they are (big-endian), ASCII tokens parsed.
+    pub fn raw_values(
+        &mut self,
+        n: usize,
+        ty: Scalar,
+        what: &str,
+    ) -> Result<Values<'a>, MeshError> {
         if self.binary {
             let bytes = self.c.take(n.saturating_mul(ty.size()), what)?;
-            Ok(ty.decode_f64(bytes, true))
+            Ok(Values::Binary(bytes))
         } else {
             self.c.check_fits(n as u64, 1, what)?;
             let mut v = Vec::with_capacity(n);
@@ -322,7 +384,7 @@ impl<'a> Parser<'a> {
                 })?;
                 v.push(x);
             }
-            Ok(v)
+            Ok(Values::Ascii(v))
         }
     }
 
@@ -476,7 +538,7 @@ impl<'a> Parser<'a> {
     }
 
     /// Skips a METADATA block (it ends at an empty line).
-    fn metadata(&mut self) {
+    pub fn metadata(&mut self) {
         while let Some(l) = self.c.line() {
             if l.iter().all(u8::is_ascii_whitespace) {
                 break;
@@ -485,10 +547,10 @@ impl<'a> Parser<'a> {
     }
 
     /// A POINT_DATA or CELL_DATA section of `n` tuples; arrays go to `out` (None: dropped).
-    fn attributes(
+    pub fn attributes(
         &mut self,
         n: usize,
-        mut out: Option<&mut Vec<RawArray>>,
+        mut out: Option<&mut Vec<LegacyArray<'a>>>,
     ) -> Result<(), MeshError> {
         loop {
             let save = self.c.pos;
@@ -496,7 +558,7 @@ impl<'a> Parser<'a> {
                 return Ok(());
             };
             let kw = line.words[0].to_ascii_uppercase();
-            let (name, comps, ty) = match kw.as_str() {
+            let (keyword, name, comps, ty) = match kw.as_str() {
                 "SCALARS" => {
                     let name = decode_name(self.word(&line, 1, "name")?);
                     let ty = self.scalar_word(&line, 2)?;
@@ -519,19 +581,26 @@ impl<'a> Parser<'a> {
                         Some(l) if l.words[0].eq_ignore_ascii_case("LOOKUP_TABLE") => {}
                         _ => self.c.pos = before,
                     }
-                    (name, comps, ty)
+                    ("SCALARS", name, comps, ty)
                 }
                 "VECTORS" | "NORMALS" => (
+                    if kw == "VECTORS" {
+                        "VECTORS"
+                    } else {
+                        "NORMALS"
+                    },
                     decode_name(self.word(&line, 1, "name")?),
                     3,
                     self.scalar_word(&line, 2)?,
                 ),
                 "TENSORS" => (
+                    "TENSORS",
                     decode_name(self.word(&line, 1, "name")?),
                     9,
                     self.scalar_word(&line, 2)?,
                 ),
                 "TENSORS6" => (
+                    "TENSORS6",
                     decode_name(self.word(&line, 1, "name")?),
                     6,
                     self.scalar_word(&line, 2)?,
@@ -545,12 +614,18 @@ impl<'a> Parser<'a> {
                         ));
                     }
                     (
+                        "TEXTURE_COORDINATES",
                         decode_name(self.word(&line, 1, "name")?),
                         dim,
                         self.scalar_word(&line, 3)?,
                     )
                 }
                 "GLOBAL_IDS" | "PEDIGREE_IDS" => (
+                    if kw == "GLOBAL_IDS" {
+                        "GLOBAL_IDS"
+                    } else {
+                        "PEDIGREE_IDS"
+                    },
                     decode_name(self.word(&line, 1, "name")?),
                     1,
                     self.scalar_word(&line, 2)?,
@@ -588,11 +663,13 @@ impl<'a> Parser<'a> {
                     return Ok(());
                 }
             };
-            let values = self.values(n.saturating_mul(comps), ty, &format!("{kw} {name}"))?;
+            let values = self.raw_values(n.saturating_mul(comps), ty, &format!("{kw} {name}"))?;
             if let Some(o) = out.as_deref_mut() {
-                o.push(RawArray {
+                o.push(LegacyArray {
                     name,
+                    keyword,
                     components: comps,
+                    ty,
                     values,
                 });
             }
@@ -600,10 +677,10 @@ impl<'a> Parser<'a> {
     }
 
     /// A FIELD block; arrays with `n` tuples go to `out` when given.
-    fn field(
+    pub fn field(
         &mut self,
         line: &Line<'_>,
-        mut out: Option<(&mut Vec<RawArray>, usize)>,
+        mut out: Option<(&mut Vec<LegacyArray<'a>>, usize)>,
     ) -> Result<(), MeshError> {
         let k = self.count_word(line, 2, "FIELD array count", 1)?;
         for _ in 0..k {
@@ -622,7 +699,7 @@ impl<'a> Parser<'a> {
             let tuples = self.count_word(&l, 2, "tuples", 0)?;
             let ty = self.scalar_word(&l, 3)?;
             let total = comps.saturating_mul(tuples);
-            let values = self.values(total, ty, &format!("FIELD array {name}"))?;
+            let values = self.raw_values(total, ty, &format!("FIELD array {name}"))?;
             if let Some((o, n)) = out.as_mut() {
                 if tuples != *n {
                     return Err(MeshError::BadArray {
@@ -631,9 +708,11 @@ impl<'a> Parser<'a> {
                         reason: format!("{tuples} tuples in POINT_DATA of {n} points"),
                     });
                 }
-                o.push(RawArray {
+                o.push(LegacyArray {
                     name,
+                    keyword: "FIELD",
                     components: comps,
+                    ty,
                     values,
                 });
             }

@@ -1,5 +1,6 @@
 //! Reading NRRD data: raw (memory-mapped), gzip, bzip2, ascii and hex, attached or in one or
-//! more data files, with `line skip` and `byte skip`.
+//! more data files, with `line skip` and `byte skip`. MetaImage data (raw, zlib, `HeaderSize`,
+//! one or more data files) is read by the same plan, built from parts ([`PlanParts`]).
 //!
 //! The decoded data is the concatenation of the data files' contents; [`DataPlan::load`]
 //! reads any byte range of it (a whole volume, or one time step). Raw data in one file is
@@ -29,34 +30,73 @@ pub(crate) struct DataPlan {
     voxel_type: VoxelType,
     line_skip: u64,
     byte_skip: i64,
+    /// `Gzip` data may also be a zlib stream (MetaImage's `CompressedData`).
+    zlib: bool,
+    /// Compressed data: at most this many bytes of each file are the stream.
+    compressed_bytes: Option<u64>,
     /// Raw encoding: each file's map and the offset of its data, made on first use.
     maps: Vec<OnceLock<(Arc<Mmap>, u64)>>,
+}
+
+/// The parts of a [`DataPlan`] for a header format other than NRRD.
+pub(crate) struct PlanParts {
+    pub files: Vec<PathBuf>,
+    /// Where the data section starts in each file (before `byte_skip`).
+    pub base_offset: u64,
+    /// Decoded bytes in all files together.
+    pub total_bytes: u64,
+    /// `Raw` or `Gzip` (with `zlib`: gzip or zlib, told by the stream's first bytes).
+    pub encoding: Encoding,
+    pub zlib: bool,
+    pub endian: Endian,
+    pub voxel_type: VoxelType,
+    /// Bytes after `base_offset` (raw: `-1` = the data ends the file).
+    pub byte_skip: i64,
+    pub compressed_bytes: Option<u64>,
 }
 
 impl DataPlan {
     pub(crate) fn new(header: &NrrdHeader, header_path: &Path) -> Self {
         let files = data_file_paths(header, header_path);
-        // Data files are mapped or read on first use; no output may replace them meanwhile.
-        for f in &files {
-            crate::input::note_input(f);
-        }
         let total = header.element_count().unwrap_or(0) * header.voxel_type.size_bytes() as u64;
-        let per_file_bytes = total / files.len().max(1) as u64;
         let base_offset = if header.data_files == DataFiles::Attached {
             header.header_len as u64
         } else {
             0
         };
-        let maps = files.iter().map(|_| OnceLock::new()).collect();
-        Self {
+        let mut plan = Self::from_parts(PlanParts {
             files,
             base_offset,
-            per_file_bytes,
+            total_bytes: total,
             encoding: header.encoding,
+            zlib: false,
             endian: header.endian.unwrap_or(Endian::native()),
             voxel_type: header.voxel_type,
-            line_skip: header.line_skip,
             byte_skip: header.byte_skip,
+            compressed_bytes: None,
+        });
+        plan.line_skip = header.line_skip;
+        plan
+    }
+
+    pub(crate) fn from_parts(parts: PlanParts) -> Self {
+        // Data files are mapped or read on first use; no output may replace them meanwhile.
+        for f in &parts.files {
+            crate::input::note_input(f);
+        }
+        let per_file_bytes = parts.total_bytes / parts.files.len().max(1) as u64;
+        let maps = parts.files.iter().map(|_| OnceLock::new()).collect();
+        Self {
+            files: parts.files,
+            base_offset: parts.base_offset,
+            per_file_bytes,
+            encoding: parts.encoding,
+            endian: parts.endian,
+            voxel_type: parts.voxel_type,
+            line_skip: 0,
+            byte_skip: parts.byte_skip,
+            zlib: parts.zlib,
+            compressed_bytes: parts.compressed_bytes,
             maps,
         }
     }
@@ -204,8 +244,19 @@ impl DataPlan {
         let skip = self.byte_skip.max(0) as u64;
         match self.encoding {
             Encoding::Gzip | Encoding::Bzip2 => {
-                let name = self.encoding.name();
-                let mut dec: Box<dyn Read> = if self.encoding == Encoding::Gzip {
+                let mut name = self.encoding.name();
+                let mut reader: Box<dyn BufRead> = match self.compressed_bytes {
+                    Some(n) => Box::new(reader.take(n)),
+                    None => Box::new(reader),
+                };
+                let is_gzip = reader
+                    .fill_buf()
+                    .map_err(|e| FormatError::io(path, e))?
+                    .starts_with(&[0x1f, 0x8b]);
+                let mut dec: Box<dyn Read> = if self.zlib && !is_gzip {
+                    name = "zlib";
+                    Box::new(flate2::bufread::ZlibDecoder::new(reader))
+                } else if self.encoding == Encoding::Gzip {
                     Box::new(flate2::bufread::MultiGzDecoder::new(reader))
                 } else {
                     Box::new(bzip2::bufread::MultiBzDecoder::new(reader))

@@ -911,7 +911,7 @@ fn parse_data_file(
 }
 
 /// Checks that a printf format has exactly one integer conversion (`%d`, `%03d`, `%i`, `%u`).
-fn check_printf(format: &str) -> Result<(), String> {
+pub(crate) fn check_printf(format: &str) -> Result<(), String> {
     let mut conversions = 0;
     let mut chars = format.chars().peekable();
     while let Some(c) = chars.next() {

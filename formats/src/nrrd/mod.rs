@@ -21,7 +21,7 @@ use std::io::Read;
 use std::path::Path;
 use std::sync::Arc;
 
-pub(crate) use data::DataPlan;
+pub(crate) use data::{DataPlan, PlanParts};
 pub use geometry::VolumeLayout;
 pub use header::{
     Center, DataFiles, Encoding, MAX_HEADER_BYTES, NrrdHeader, parse_header, parse_header_at,
@@ -81,7 +81,7 @@ pub fn read_nrrd(path: &Path) -> Result<Dataset, FormatError> {
             .map_err(|e| FormatError::geometry(path, e))?;
         return Ok(Dataset::Volume(volume));
     }
-    let loader = NrrdSteps::new(path, plan, layout, step_bytes)?;
+    let loader = NrrdSteps::new(path, plan, layout, step_bytes, "NRRD")?;
     let series = TimeSeries::open(Arc::new(loader)).map_err(|e| FormatError::Series {
         path: path.to_path_buf(),
         reason: e.to_string(),

@@ -1,5 +1,5 @@
-//! The time axis of a 4D NRRD as a [`StepLoader`]: attached data, one data file, or a
-//! `LIST`/pattern of data files. Raw data in one file is mapped once and each step is a
+//! The time axis of a 4D NRRD (or 4D MetaImage, read by the same data plan) as a
+//! [`StepLoader`]: attached data, one data file, or a `LIST`/pattern of data files. Raw data in one file is mapped once and each step is a
 //! zero-copy view into it; step 0 is loaded up front so its errors are reported typed.
 
 use std::path::{Path, PathBuf};
@@ -12,9 +12,11 @@ use super::{DataPlan, VolumeLayout};
 use crate::FirstStep;
 use crate::error::FormatError;
 
-/// The steps of a 4D NRRD.
+/// The steps of a 4D NRRD or MetaImage.
 pub struct NrrdSteps {
     path: PathBuf,
+    /// The format, for [`StepLoader::describe`].
+    format: &'static str,
     plan: Arc<DataPlan>,
     layout: VolumeLayout,
     step_bytes: u64,
@@ -28,10 +30,12 @@ impl NrrdSteps {
         plan: Arc<DataPlan>,
         layout: VolumeLayout,
         step_bytes: u64,
+        format: &'static str,
     ) -> Result<Self, FormatError> {
         let first = load(path, &plan, &layout, step_bytes, 0)?;
         Ok(Self {
             path: path.to_path_buf(),
+            format,
             plan,
             layout,
             step_bytes,
@@ -64,8 +68,9 @@ impl StepLoader for NrrdSteps {
 
     fn describe(&self) -> String {
         format!(
-            "{} time steps of 4D NRRD {} ({} data file(s))",
+            "{} time steps of 4D {} {} ({} data file(s))",
             self.layout.steps,
+            self.format,
             self.path.display(),
             self.plan.file_count()
         )
