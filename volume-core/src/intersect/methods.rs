@@ -206,12 +206,12 @@ impl CellIntersector for Neubauer {
 /// 1. **Fast path, `f32`** (most cells): the segment's cubic in `f32` and its Bernstein
 ///    coefficients, whose convex hull contains the cubic on `[0, 1]`. When every coefficient
 ///    lies farther from 0 than a rigorous bound on the error of this `f32` computation
-///    against the `f64` truth ([`ExactMargin`]: corner differences, segment ends, cubic
+///    against the `f64` truth (`ExactMargin`: corner differences, segment ends, cubic
 ///    coefficients, evaluation), the segment provably holds no crossing and no touch: `None`.
 /// 2. **Slow path, `f64`** (the rest: cells the ray crosses or passes within the bound): the
 ///    segment's ends from the exact slab ([`CellSegment::local_f64`]), the cubic in `f64`,
 ///    and Listing 7.1's monotone pieces between the derivative's roots, decided exactly as
-///    [`Reference`] decides them ([`first_root_f64`]: the same extrema, sign tests and touch
+///    [`Reference`] decides them (`first_root_f64`: the same extrema, sign tests and touch
 ///    tolerance), so the first crossing is found on every ray the reference finds it on and
 ///    never on another; regula falsi with the Illinois modification then refines it in
 ///    `f64` (the listing's plain regula falsi stagnates on convex pieces).
@@ -224,8 +224,8 @@ impl CellIntersector for Neubauer {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Exact;
 
-/// Illinois steps of the slow path at most (it stops earlier once the bracket is below
-/// `f64` resolution or `f` vanishes).
+/// Illinois steps of the slow path at most (it stops earlier, once the bracket is below a
+/// quarter of the hit's `f32` resolution in `t`, or `f` vanishes).
 pub const EXACT_ITERATIONS: u32 = 24;
 
 /// The error bound of [`Exact`]'s `f32` fast path for one cell and one isovalue, in the
@@ -235,10 +235,12 @@ pub const EXACT_ITERATIONS: u32 = 24;
 /// - corner differences `v − iso` rounded to `f32`: `ε·Σ|g|`;
 /// - the cubic's coefficients from the `f32` segment by three nested lerps: under
 ///   `24·ε·Σ|g|` for segment coordinates within `[−δ, 1 + δ]`, `δ ≪ 1`;
-/// - the `f32` segment ends: each in-face coordinate is off by at most
-///   `6·ε·(|o − lo| + |d|·|t|)/w` (the `f32` slab `t` errs by `3ε·|t|`, the point by two
-///   roundings), and the trilinear interpolant is `1.1·Σ|g|`-Lipschitz per axis there, so
-///   the values differ by at most `1.1·Σ|g|·Σ_axes(e_entry + e_exit)`;
+/// - the `f32` segment ends: with `u = ε/2`, each coordinate of an end is off by at most
+///   `u·(2|o − lo| + 5|d|·|t|)/w + 2u` (the `f32` slab `t` errs by `3u·|t|`, moving the
+///   point along the ray; `o − lo`, `d·t`, their sum and the scaling round once each), so by
+///   `e = 3ε·(|o − lo| + |d|·|t|)/w + ε` per axis; a point between the ends is off by at
+///   most the larger end error, and the trilinear interpolant is `(1 + δ)²·Σ|g|`-Lipschitz
+///   per axis there, so the values differ by at most `1.1·Σ|g|·Σ_axes e`;
 /// - Bernstein coefficients and Horner evaluation of the `f32` cubic: `16·ε·Σ|k|` (see
 ///   [`bernstein_clear`]).
 ///
@@ -257,16 +259,16 @@ impl ExactMargin {
         }
     }
 
-    /// The margin for one segment whose ends err by at most `seg_err` cell units in all,
-    /// before the evaluation term of [`bernstein_clear`].
+    /// The margin for one segment whose points err by at most `seg_err` cell units summed
+    /// over the axes, before the evaluation term of [`bernstein_clear`].
     #[inline(always)]
     pub(crate) fn with_segment(self, seg_err: f32) -> f32 {
-        self.gsum * (32.0 * f32::EPSILON + 2.2 * seg_err)
+        self.gsum * (32.0 * f32::EPSILON + 1.1 * seg_err)
     }
 }
 
-/// `Σ_axes 6ε·(|o − lo| + |d|·max(|t_near|, |t_far|))/w`: the bound on the error of one end of
-/// [`CellSegment::local_f32`] summed over the axes (see [`ExactMargin`]).
+/// `Σ_axes 3ε·(|o − lo| + |d|·max(|t_near|, |t_far|))/w + ε`: the bound on the error of a
+/// point of [`CellSegment::local_f32`]'s segment, summed over the axes (see [`ExactMargin`]).
 #[inline(always)]
 fn segment_error(seg: &CellSegment) -> f32 {
     let t = seg.t_near.abs().max(seg.t_far.abs());
@@ -275,7 +277,7 @@ fn segment_error(seg: &CellSegment) -> f32 {
     for a in 0..3 {
         e += ((seg.origin[a] - seg.lo[a]).abs() + seg.dir[a].abs() * t) * inv_w[a];
     }
-    6.0 * f32::EPSILON * e
+    3.0 * f32::EPSILON * e + 3.0 * f32::EPSILON
 }
 
 impl CellIntersector for Exact {
@@ -317,7 +319,7 @@ impl CellIntersector for Exact {
         let margin = ExactMargin::new(&g);
         let seg_err = segment_error_x8(seg);
         let margin = f32x8::splat(margin.gsum)
-            * (f32x8::splat(32.0 * f32::EPSILON) + f32x8::splat(2.2) * seg_err);
+            * (f32x8::splat(32.0 * f32::EPSILON) + f32x8::splat(1.1) * seg_err);
         let mut bits = mask & !bernstein_clear_x8(&k, margin);
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
@@ -342,28 +344,38 @@ fn segment_error_x8(seg: &SegmentsX8<'_>) -> f32x8 {
         let rel = (r.origin[a] - f32x8::splat(seg.lo[a])).abs();
         e += (rel + r.dir[a].abs() * t) * f32x8::splat(inv_w[a]);
     }
-    f32x8::splat(6.0 * f32::EPSILON) * e
+    f32x8::splat(3.0 * f32::EPSILON) * e + f32x8::splat(3.0 * f32::EPSILON)
 }
 
 /// The `f64` slow path of [`Exact`]: [`first_root_f64`] on the exact segment, refined by
-/// Illinois steps; the root as a position on the `f32` segment.
+/// Illinois steps until the bracket is a quarter of an `f32` ulp of the hit's `t` (what
+/// the hit can hold); the root as a position on the `f32` segment.
 #[inline(never)]
 fn exact_slow<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
     let Ok(c) = CubicF64::new(corners, iso, seg) else {
         return Some(0.0);
     };
-    let s = first_root_f64(&c.k, c.tol, refine_illinois_f64)?;
+    let span = c.t1 - c.t0;
+    let s_tol = if span > 0.0 {
+        (0.25 * f64::from(f32::EPSILON) * c.t0.abs().max(c.t1.abs()) / span).max(f64::EPSILON)
+    } else {
+        1.0
+    };
+    let s = first_root_f64(&c.k, c.tol, |k, s0, f0, s1| {
+        refine_illinois_f64(k, s0, f0, s1, s_tol)
+    })?;
     Some(c.s_on_f32_segment(seg, s))
 }
 
 /// Regula falsi with the Illinois modification (an end kept twice has its value halved,
 /// which avoids plain regula falsi's one-sided stagnation on convex pieces), on
-/// `[s0, s1]` with `f(s0) = f0` and `f(s1)` of opposite signs, in `f64`.
-fn refine_illinois_f64(k: &[f64; 4], mut s0: f64, mut f0: f64, mut s1: f64) -> f64 {
+/// `[s0, s1]` with `f(s0) = f0` and `f(s1)` of opposite signs, in `f64`, until the bracket
+/// is narrower than `s_tol`.
+fn refine_illinois_f64(k: &[f64; 4], mut s0: f64, mut f0: f64, mut s1: f64, s_tol: f64) -> f64 {
     let mut f1 = eval64(k, s1);
     let mut side = 0i8;
     for _ in 0..EXACT_ITERATIONS {
-        if (s1 - s0).abs() <= 4.0 * f64::EPSILON {
+        if (s1 - s0).abs() <= s_tol {
             break;
         }
         let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
@@ -537,7 +549,7 @@ fn solve_cubic_schwarze(k: [f32; 4], out: &mut [f32; 3]) {
 }
 
 /// The `f64` reference: isolates every root of the cubic on `[0, 1]` and returns the first,
-/// to full double precision ([`first_root_f64`], then bisection until the bracket's ends are
+/// to full double precision (`first_root_f64`, then bisection until the bracket's ends are
 /// adjacent doubles). Corner differences `v − iso` are formed in `f64` from the native voxels
 /// (exact for every integer type and for `f32`), and the segment in cell-local coordinates
 /// is the part of the same `f32` ray inside the same cell bounds the other methods see,
@@ -849,8 +861,13 @@ mod tests {
             if let (Some(f), Some(t)) = (fast, truth) {
                 hits += 1;
                 let (tn, tf) = (f64::from(seg.t_near), f64::from(seg.t_far));
+                // Within the f32 resolution of the hit's t (what a hit holds).
                 let cells = (f - t).abs() * (tf - tn) * f64::from(seg.dir.length());
-                assert!(cells < 1e-6, "case {case}: {f} vs {t} ({cells} cells)");
+                let ulp_cells = f64::from(f32::EPSILON * seg.t_far.abs() * seg.dir.length());
+                assert!(
+                    cells <= ulp_cells + 1e-9,
+                    "case {case}: {f} vs {t} ({cells} cells)"
+                );
             }
         }
         assert!(hits > 10_000, "{hits} hits of {total}");
