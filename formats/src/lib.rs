@@ -36,6 +36,8 @@ pub mod raw;
 pub mod series;
 pub mod treelet;
 
+mod oriented;
+
 pub use error::FormatError;
 
 use std::path::Path;
