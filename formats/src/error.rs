@@ -128,6 +128,14 @@ pub enum FormatError {
     /// The file's kind could not be determined, or it is not something `open` reads.
     #[error("{}: {reason}", path.display())]
     UnknownFormat { path: PathBuf, reason: String },
+    /// A field of a binary header (NIfTI `dim[3]`, `vox_offset`, ...) that is out of range or
+    /// inconsistent with the file.
+    #[error("{}: header field `{field}`: {reason}", path.display())]
+    BadField {
+        path: PathBuf,
+        field: String,
+        reason: String,
+    },
 }
 
 impl FormatError {
@@ -153,7 +161,8 @@ impl FormatError {
             | FormatError::UnknownFormat { path, .. }
             | FormatError::OutputIsInput { path, .. }
             | FormatError::OutputExists { path }
-            | FormatError::BadOutput { path, .. } => path,
+            | FormatError::BadOutput { path, .. }
+            | FormatError::BadField { path, .. } => path,
         }
     }
 
@@ -164,7 +173,8 @@ impl FormatError {
             | FormatError::DuplicateField { field, .. }
             | FormatError::BadValue { field, .. }
             | FormatError::Contradiction { field, .. }
-            | FormatError::Unsupported { field, .. } => Some(field),
+            | FormatError::Unsupported { field, .. }
+            | FormatError::BadField { field, .. } => Some(field),
             FormatError::MissingField { field, .. } => Some(field),
             _ => None,
         }

@@ -31,6 +31,8 @@ pub(crate) struct DataPlan {
     byte_skip: i64,
     /// Raw encoding: each file's map and the offset of its data, made on first use.
     maps: Vec<OnceLock<(Arc<Mmap>, u64)>>,
+    /// Bytes after the data are ignored (NIfTI) rather than refused (NRRD).
+    trailing_ok: bool,
 }
 
 impl DataPlan {
@@ -58,6 +60,38 @@ impl DataPlan {
             line_skip: header.line_skip,
             byte_skip: header.byte_skip,
             maps,
+            trailing_ok: false,
+        }
+    }
+
+    /// The data of one file that is not a NRRD (NIfTI): `total_bytes` at byte `offset` of
+    /// the file (raw, memory-mapped) or of its decompressed stream (gzip); bytes after the
+    /// data are ignored.
+    pub(crate) fn single_file(
+        path: &Path,
+        encoding: Encoding,
+        offset: u64,
+        total_bytes: u64,
+        endian: Endian,
+        voxel_type: VoxelType,
+    ) -> Self {
+        crate::input::note_input(path);
+        let (base_offset, byte_skip) = match encoding {
+            // The skip of a compressed stream counts decompressed bytes (as NRRD's byte skip).
+            Encoding::Raw => (offset, 0),
+            _ => (0, i64::try_from(offset).unwrap_or(i64::MAX)),
+        };
+        Self {
+            files: vec![path.to_path_buf()],
+            base_offset,
+            per_file_bytes: total_bytes,
+            encoding,
+            endian,
+            voxel_type,
+            line_skip: 0,
+            byte_skip,
+            maps: vec![OnceLock::new()],
+            trailing_ok: true,
         }
     }
 
@@ -140,7 +174,7 @@ impl DataPlan {
                 available: file_len,
             });
         }
-        if end < file_len {
+        if end < file_len && !self.trailing_ok {
             return Err(FormatError::TooLong {
                 path: path.clone(),
                 offset: end,
@@ -215,7 +249,7 @@ impl DataPlan {
                 read_exact_capped(path, name, &mut dec, skip.saturating_add(a), None)?;
                 read_exact_capped(path, name, &mut dec, b - a, Some(out))
                     .map_err(|e| shift_offset(e, skip.saturating_add(a)))?;
-                if whole_tail {
+                if whole_tail && !self.trailing_ok {
                     let mut one = [0u8; 1];
                     match dec.read(&mut one) {
                         Ok(0) => {}
