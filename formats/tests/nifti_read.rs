@@ -329,6 +329,13 @@ fn damaged_files_are_clear_errors_naming_file_and_field() {
         "{e}"
     );
     assert!(e.to_string().contains("f64.nii.gz"), "{e}");
+    // A damaged checksum: the data decodes, but the stream is not what was written.
+    let mut x = gz_bytes.clone();
+    let n = x.len();
+    x[n - 6] ^= 0x5a;
+    std::fs::write(&gz, &x).unwrap();
+    let e = formats::open(&gz, &OpenOptions::default()).unwrap_err();
+    assert!(matches!(&e, FormatError::Decode { .. }), "{e}");
     // A gzip stream cut inside the header, and one that is not gzip at all.
     std::fs::write(&gz, &gz_bytes[..20]).unwrap();
     let e = formats::open(&gz, &OpenOptions::default()).unwrap_err();

@@ -31,7 +31,8 @@ pub(crate) struct DataPlan {
     byte_skip: i64,
     /// Raw encoding: each file's map and the offset of its data, made on first use.
     maps: Vec<OnceLock<(Arc<Mmap>, u64)>>,
-    /// Bytes after the data are ignored (NIfTI) rather than refused (NRRD).
+    /// Bytes after the data are ignored (NIfTI) rather than refused (NRRD); a compressed
+    /// stream is still read to its end when its last bytes load (its checksum).
     trailing_ok: bool,
 }
 
@@ -249,7 +250,18 @@ impl DataPlan {
                 read_exact_capped(path, name, &mut dec, skip.saturating_add(a), None)?;
                 read_exact_capped(path, name, &mut dec, b - a, Some(out))
                     .map_err(|e| shift_offset(e, skip.saturating_add(a)))?;
-                if whole_tail && !self.trailing_ok {
+                if whole_tail && self.trailing_ok {
+                    // Bytes after the data are allowed, but the stream must still be whole:
+                    // reading it to its end checks the gzip CRC (discarding, nothing kept).
+                    std::io::copy(&mut dec, &mut std::io::sink()).map_err(|e| {
+                        FormatError::Decode {
+                            path: path.clone(),
+                            encoding: name,
+                            offset: skip.saturating_add(b),
+                            reason: e.to_string(),
+                        }
+                    })?;
+                } else if whole_tail {
                     let mut one = [0u8; 1];
                     match dec.read(&mut one) {
                         Ok(0) => {}
