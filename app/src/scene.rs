@@ -6,7 +6,7 @@
 //!
 //! | kind | files | acceleration structure |
 //! |---|---|---|
-//! | [`AnyScene::Grid`] | NRRD/NHDR, raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
+//! | [`AnyScene::Grid`] | NRRD/NHDR, NIfTI (`.nii`, `.nii.gz`, `.hdr`/`.img`, 4D), Analyze 7.5, raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
 //! | [`AnyScene::Tet`] | `.vtk`, `.vtu`, `.msh`, `.node`/`.ele`, a `.pvd` collection or a mesh pattern (`step_%03d.vtu`, `step_*.vtu`) — via `formats::mesh` | implicit min/max BVH with 4D bounds ([`TetScene`], ch. 8) |
 //! | [`AnyScene::Ooc`] | `.isot` treelet files (`isoscope preprocess`) — via `formats::treelet::open_isot` | treelets + loader thread ([`AnyOocVolume`], §7.7–7.8) |
 //!
@@ -100,7 +100,8 @@ impl std::fmt::Display for SceneKind {
 }
 
 /// What [`open_scene`] will open `path` as: meshes by extension (`.vtk`, `.vtu`, `.msh`,
-/// `.node`, `.ele`, `.pvd`, also in patterns), `.isot` by extension or magic, else a grid.
+/// `.node`, `.ele`, `.pvd`, also in patterns), `.isot` by extension or magic, else a grid
+/// (NRRD, NIfTI, Analyze, raw, volume series).
 pub fn detect_kind(path: &Path) -> SceneKind {
     let ext = path
         .extension()
@@ -1321,6 +1322,16 @@ mod tests {
         assert_eq!(detect_kind(Path::new("c.pvd")), SceneKind::Tet);
         assert_eq!(detect_kind(Path::new("v.isot")), SceneKind::Ooc);
         assert_eq!(detect_kind(Path::new("v.nrrd")), SceneKind::Grid);
+        for nifti in [
+            "t1.nii",
+            "bold.nii.gz",
+            "a.hdr",
+            "a.img",
+            "a.img.gz",
+            "s_%03d.nii.gz",
+        ] {
+            assert_eq!(detect_kind(Path::new(nifti)), SceneKind::Grid, "{nifti}");
+        }
     }
 
     #[test]

@@ -27,9 +27,10 @@ pub const HISTOGRAM_BINS: usize = 64;
 /// Arguments of `isoscope info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), a
-    /// time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral mesh (.vtk,
-    /// .vtu, .msh, .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an .isot file.
+    /// Volume file: .nrrd/.nhdr, .nii/.nii.gz, .hdr/.img (NIfTI pair, Analyze), a raw file (with
+    /// the raw flags or a NAME.json sidecar), a time series pattern such as vol_%03d.nrrd or
+    /// 'vol_*.nrrd'; a tetrahedral mesh (.vtk, .vtu, .msh, .node/.ele, .pvd, or a pattern such
+    /// as step_%03d.vtu); or an .isot file.
     pub file: PathBuf,
     /// Print machine-readable JSON (a stable interface, see docs/cli.md).
     #[arg(long)]
