@@ -15,7 +15,8 @@ Run from this directory with a Python that has nibabel (tested with nibabel 5.4.
   affine (nibabel's get_best_affine: RAS+, in the file's units), the space unit, scl
   slope/intercept (null: no scaling), pixdim[4]/toffset, a few voxels (stored and scaled),
   and the world position of the 8 corner voxels. For header-only files (.hdr without .img)
-  only the header fields.
+  only the header fields. `profiles`: scaled_i16.nii's physical values along x on the rows
+  (j, k) in {5, 6} x {4, 5}.
 
 Nothing here is computed by Isoscope: the Rust test compares its reader with these values.
 """
@@ -239,6 +240,14 @@ def main():
         "nifti2_be_4d.nii",
         "analyze_spm.hdr",
     ]
+    # Physical values of scaled_i16.nii along x on the four rows around (y, z) = (5.25, 4.5):
+    # the crossing of an isovalue there is what `render --iso` must hit (the app test).
+    scaled = np.asanyarray(nib.load("scaled_i16.nii").dataobj)
+    profiles = [
+        {"file": "scaled_i16.nii", "j": j, "k": k, "values": [float(x) for x in scaled[:, j, k]]}
+        for k in (4, 5)
+        for j in (5, 6)
+    ]
     out = {
         "nibabel": nib.__version__,
         "numpy": np.__version__,
@@ -248,6 +257,7 @@ def main():
             describe_header("nifti1.hdr", nib.Nifti1Header),
             describe_header("nifti2.hdr", nib.Nifti2Header),
         ],
+        "profiles": profiles,
     }
     with open("expected.json", "w") as f:
         json.dump(out, f, indent=1)
