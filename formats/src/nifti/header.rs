@@ -304,7 +304,10 @@ pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<NiftiHeader, FormatErro
                 return Err(bad(
                     path,
                     "magic",
-                    format!("{m:?}: a NIfTI-2 header needs \"n+2\" or \"ni2\""),
+                    format!(
+                        "{:?}: a NIfTI-2 header needs \"n+2\" or \"ni2\"",
+                        String::from_utf8_lossy(m)
+                    ),
                 ));
             }
         };
