@@ -3764,6 +3764,9 @@ impl Nifti1 {
     }
 }
 
+/// One change to a valid NIfTI-1 header (a damaged case).
+type HeaderEdit = Box<dyn Fn(&mut Nifti1)>;
+
 fn i16s(values: &[f64], big: bool) -> Vec<u8> {
     values
         .iter()
@@ -3936,7 +3939,7 @@ fn nifti_cases(c: &mut Corpus) -> std::io::Result<()> {
     }
 
     // Lying headers.
-    let lying: Vec<(&str, Box<dyn Fn(&mut Nifti1)>)> = vec![
+    let lying: Vec<(&str, HeaderEdit)> = vec![
         ("sizeof_hdr_347", Box::new(|h| h.sizeof_hdr = 347)),
         ("sizeof_hdr_0", Box::new(|h| h.sizeof_hdr = 0)),
         ("dim0_zero", Box::new(|h| h.dim[0] = 0)),
@@ -4094,7 +4097,7 @@ fn nifti_cases(c: &mut Corpus) -> std::io::Result<()> {
     )?;
 
     // Geometry no grid can have.
-    let geometry: Vec<(&str, Box<dyn Fn(&mut Nifti1)>)> = vec![
+    let geometry: Vec<(&str, HeaderEdit)> = vec![
         ("sform_zero", Box::new(|h| h.srow = [[0.0; 4]; 3])),
         ("sform_nan", Box::new(|h| h.srow[1][2] = f32::NAN)),
         (
@@ -4104,7 +4107,7 @@ fn nifti_cases(c: &mut Corpus) -> std::io::Result<()> {
                     [1.0, 1.0, 0.0, 0.0],
                     [1.0, 1.0, 0.0, 0.0],
                     [0.0, 0.0, 1.0, 0.0],
-                ]
+                ];
             }),
         ),
         ("sform_far", Box::new(|h| h.srow[0][3] = 1e30)),
