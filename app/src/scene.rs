@@ -1131,10 +1131,12 @@ impl OocData {
         self.open_time
     }
 
-    /// The finite value range recorded in the file (the quantizer's range).
+    /// The finite value range recorded in the file (the quantizer's range), physical.
     pub fn value_range(&self) -> Option<(f64, f64)> {
-        let q = &self.volume.meta().quantizer;
-        (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi).then_some((q.lo, q.hi))
+        let meta = self.volume.meta();
+        let q = &meta.quantizer;
+        (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi)
+            .then(|| meta.value_map.range_to_physical((q.lo, q.hi)))
     }
 
     /// Requests the treelets of `isovalues` (same quantized bucket: no reload).
