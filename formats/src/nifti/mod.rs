@@ -5,7 +5,7 @@
 //! - [`read_nifti`]: a `.nii`, `.nii.gz`, or a `.hdr`/`.img` pair (either part may be
 //!   gzipped: `.hdr.gz`, `.img.gz`; opening the `.img` finds its `.hdr`). Uncompressed data
 //!   is memory-mapped after the file length is checked against `vox_offset` and the sizes
-//!   (zero-copy when native-endian and aligned, through [`crate::nrrd::DataPlan`], the one
+//!   (zero-copy when native-endian and aligned, through `nrrd::DataPlan`, the one
 //!   data path of every reader of raw or gzip data at an offset); gzip data is decompressed
 //!   into memory that grows only as the stream delivers bytes, never beyond what the header
 //!   asks for. Bytes after the data are ignored, as nibabel and niftilib do.
