@@ -6,7 +6,7 @@
 //!
 //! | kind | files | acceleration structure |
 //! |---|---|---|
-//! | [`AnyScene::Grid`] | NRRD/NHDR, MetaImage `.mha`/`.mhd`, VTK image data (`.vti`, legacy `.vtk` structured points and rectilinear grids), TIFF stacks (multi-page, or numbered 2D slices `slice_*.tif`), raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD and MetaImage — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
+//! | [`AnyScene::Grid`] | NRRD/NHDR, NIfTI (`.nii`, `.nii.gz`, `.hdr`/`.img`, 4D), Analyze 7.5, MetaImage `.mha`/`.mhd`, VTK image data (`.vti`, legacy `.vtk` structured points and rectilinear grids), TIFF stacks (multi-page, or numbered 2D slices `slice_*.tif`), raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD and MetaImage — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
 //! | [`AnyScene::Tet`] | `.vtk` (unstructured grids: a `.vtk` is a mesh or a grid by its `DATASET` line), `.vtu`, `.msh`, `.node`/`.ele`, a `.pvd` collection or a mesh pattern (`step_%03d.vtu`, `step_*.vtu`) — via `formats::mesh` | implicit min/max BVH with 4D bounds ([`TetScene`], ch. 8) |
 //! | [`AnyScene::Ooc`] | `.isot` treelet files (`isoscope preprocess`) — via `formats::treelet::open_isot` | treelets + loader thread ([`AnyOocVolume`], §7.7–7.8) |
 //!
@@ -104,7 +104,8 @@ impl std::fmt::Display for SceneKind {
 
 /// What [`open_scene`] will open `path` as: meshes by extension (`.vtk`, `.vtu`, `.msh`,
 /// `.node`, `.ele`, `.pvd`, also in patterns; a `.vtk` whose `DATASET` is an image is a grid),
-/// `.isot` by extension or magic, else a grid.
+/// `.isot` by extension or magic, else a grid (NRRD, NIfTI, Analyze, MetaImage, VTK image
+/// data, TIFF, raw, volume series).
 pub fn detect_kind(path: &Path) -> SceneKind {
     let ext = path
         .extension()
@@ -1219,10 +1220,12 @@ impl OocData {
         self.open_time
     }
 
-    /// The finite value range recorded in the file (the quantizer's range).
+    /// The finite value range recorded in the file (the quantizer's range), physical.
     pub fn value_range(&self) -> Option<(f64, f64)> {
-        let q = &self.volume.meta().quantizer;
-        (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi).then_some((q.lo, q.hi))
+        let meta = self.volume.meta();
+        let q = &meta.quantizer;
+        (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi)
+            .then(|| meta.value_map.range_to_physical((q.lo, q.hi)))
     }
 
     /// Requests the treelets of `isovalues` (same quantized bucket: no reload).
@@ -1410,6 +1413,16 @@ mod tests {
         assert_eq!(detect_kind(Path::new("c.pvd")), SceneKind::Tet);
         assert_eq!(detect_kind(Path::new("v.isot")), SceneKind::Ooc);
         assert_eq!(detect_kind(Path::new("v.nrrd")), SceneKind::Grid);
+        for nifti in [
+            "t1.nii",
+            "bold.nii.gz",
+            "a.hdr",
+            "a.img",
+            "a.img.gz",
+            "s_%03d.nii.gz",
+        ] {
+            assert_eq!(detect_kind(Path::new(nifti)), SceneKind::Grid, "{nifti}");
+        }
     }
 
     fn image_data(name: &str) -> PathBuf {

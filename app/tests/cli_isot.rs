@@ -1,7 +1,8 @@
 //! Out-of-core `.isot` files through the `isoscope` binary: `preprocess`, then `render` at the
 //! finest level equals the in-core render of the same volume pixel for pixel; `info` and
 //! `bench --json` report levels, time to first image and resident memory; truncated and
-//! corrupted files are errors, never pictures.
+//! corrupted files are errors, never pictures. A scaled NIfTI keeps its value map in the
+//! `.isot`: isovalues and ranges stay physical.
 
 mod common;
 use common::{fails, isoscope, ok};
@@ -92,6 +93,71 @@ fn finest_level_render_equals_the_in_core_render() {
         b.as_raw(),
         "same shading, transparency included"
     );
+}
+
+#[test]
+fn a_scaled_volume_keeps_its_value_map_out_of_core() {
+    // int16 written by nibabel with scl_slope 2, scl_inter −1024 (formats/tests/data/nifti).
+    let dir = tempfile::tempdir().unwrap();
+    let nii =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../formats/tests/data/nifti/scaled_i16.nii");
+    let isot = dir.path().join("scaled.isot");
+    ok(&[
+        "preprocess",
+        s(&nii),
+        "-o",
+        s(&isot),
+        "--treelet-height",
+        "2",
+    ]);
+    let json = |f: &Path| -> serde_json::Value {
+        serde_json::from_str(&ok(&["info", s(f), "--json"])).unwrap()
+    };
+    let (a, b) = (json(&nii), json(&isot));
+    assert_eq!(b["value_map"], a["value_map"]);
+    assert_eq!(b["value_map"]["slope"], 2.0);
+    assert_eq!(b["value_range"], a["value_range"]);
+    assert_eq!(b["world_frame"], "RAS");
+    assert_eq!(b["voxel_type"], "i16");
+    let text = ok(&["info", s(&isot)]);
+    assert!(text.contains("physical = 2 · stored + -1024"), "{text}");
+    // Physical isovalues render the same surfaces as the in-core file, bit for bit.
+    let mut depths = Vec::new();
+    for f in [&nii, &isot] {
+        let npy = dir
+            .path()
+            .join(format!("{}.npy", f.file_name().unwrap().to_string_lossy()));
+        let png = npy.with_extension("png");
+        ok(&[
+            "render",
+            s(f),
+            "--iso",
+            "500",
+            "--iso",
+            "1200:#4080ff:0.5",
+            "--orbit",
+            "35,25",
+            "--size",
+            "48x40",
+            "-o",
+            s(&png),
+            "--depth-out",
+            s(&npy),
+        ]);
+        depths.push(
+            isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap())
+                .unwrap()
+                .1,
+        );
+    }
+    let hits = depths[0].iter().filter(|d| d.is_finite()).count();
+    assert!(hits > 100, "{hits}");
+    for (k, (x, y)) in depths[0].iter().zip(&depths[1]).enumerate() {
+        assert!(
+            x.to_bits() == y.to_bits(),
+            "pixel {k}: in-core {x}, out-of-core {y}"
+        );
+    }
 }
 
 #[test]

@@ -187,6 +187,29 @@ fn existing_outputs_are_replaced_only_with_force_in_every_command() {
     assert!(e.contains("already exists") && e.contains("--force"), "{e}");
     ok(&["generate", "sphere", "--size", "8", "-o", s(&g), "--force"]);
 
+    // convert: each output format; a detached header's data file counts as an output too.
+    for name in ["c.nii", "c.nii.gz", "c.nrrd", "c.nhdr"] {
+        let out = d.join(name);
+        ok(&["convert", s(&v), "-o", s(&out)]);
+        let e = fails(&["convert", s(&v), "-o", s(&out)]);
+        assert!(e.contains("already exists") && e.contains("--force"), "{e}");
+        ok(&["convert", s(&v), "-o", s(&out), "--force"]);
+    }
+    std::fs::remove_file(d.join("c.nhdr")).unwrap();
+    let e = fails(&["convert", s(&v), "-o", s(&d.join("c.nhdr"))]);
+    assert!(e.contains("already exists") && e.contains("c.raw"), "{e}");
+    // Never over the input, or over a file it reads (a detached header's data file).
+    let e = fails(&["convert", s(&v), "-o", s(&v), "--force"]);
+    assert!(e.contains("is the input file"), "{e}");
+    let e = fails(&[
+        "convert",
+        s(&d.join("c.nii")),
+        "-o",
+        s(&d.join("c.nii")),
+        "--force",
+    ]);
+    assert!(e.contains("is the input file"), "{e}");
+
     // accuracy checks every report and image path before its long measurement.
     let md = d.join("acc.md");
     std::fs::write(&md, "keep").unwrap();
@@ -200,6 +223,68 @@ fn existing_outputs_are_replaced_only_with_force_in_every_command() {
     ]);
     assert!(e.contains("already exists") && e.contains("acc.md"), "{e}");
     assert_eq!(std::fs::read_to_string(&md).unwrap(), "keep");
+}
+
+#[test]
+fn convert_errors_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let v = d.join("v.nrrd");
+    sphere(&v);
+    let e = fails(&["convert", s(&v), "-o", s(&d.join("v.png"))]);
+    assert!(e.contains(".nii.gz") && e.contains("v.png"), "{e}");
+    let e = fails(&["convert", s(&v), "--step", "1", "-o", s(&d.join("v.nii"))]);
+    assert!(e.contains("single volume"), "{e}");
+    let e = fails(&[
+        "convert",
+        s(&v),
+        "--encoding",
+        "gzip",
+        "-o",
+        s(&d.join("v.nii")),
+    ]);
+    assert!(e.contains(".nii.gz"), "{e}");
+    // A series: whole to NIfTI, one step to NRRD, never all steps to NRRD.
+    ok(&[
+        "generate",
+        "blobs",
+        "--size",
+        "8",
+        "--steps",
+        "3",
+        "-o",
+        s(&d.join("b_%03d.nrrd")),
+    ]);
+    let series = d.join("b_%03d.nrrd");
+    let e = fails(&["convert", s(&series), "-o", s(&d.join("b.nrrd"))]);
+    assert!(e.contains("3 time steps") && e.contains("--step"), "{e}");
+    let e = fails(&[
+        "convert",
+        s(&series),
+        "--step",
+        "3",
+        "-o",
+        s(&d.join("b.nrrd")),
+    ]);
+    assert!(e.contains("step 3"), "{e}");
+    ok(&[
+        "convert",
+        s(&series),
+        "--step",
+        "2",
+        "-o",
+        s(&d.join("b.nrrd")),
+    ]);
+    ok(&["convert", s(&series), "-o", s(&d.join("b.nii.gz"))]);
+    let info: serde_json::Value =
+        serde_json::from_str(&ok(&["info", s(&d.join("b.nii.gz")), "--json"])).unwrap();
+    assert_eq!(info["time_steps"], 3);
+    // Meshes are not volumes.
+    let mesh = d.join("m.vtu");
+    ok(&["generate", "tet-ball", "--size", "4", "-o", s(&mesh)]);
+    let e = fails(&["convert", s(&mesh), "-o", s(&d.join("m.nii"))]);
+    assert!(e.contains("tetrahedral mesh"), "{e}");
+    assert!(!d.join("m.nii").exists() && !d.join("v.nii").exists());
 }
 
 #[test]

@@ -1,7 +1,10 @@
 //! `isoscope render` and `isoscope bench` end to end on a generated sphere distance field:
 //! the depth image equals the analytic ray–sphere distance within the trilinear
 //! interpolation bound, the PNG has the requested size, bad input gives clear errors, and the
-//! bench JSON carries its documented fields.
+//! bench JSON carries its documented fields. NIfTI files (written by nibabel,
+//! `formats/tests/data/nifti`) render like their NRRD twins written by `isoscope convert`,
+//! and a scaled file's isovalues are physical: the surface lies where nibabel's scaled data
+//! crosses the value.
 
 mod common;
 use common::{fails, ok};
@@ -324,4 +327,150 @@ fn image_formats_render_like_their_nrrd_twins() {
         assert!(hits > 50, "{}: only {hits} pixels hit", file.display());
         assert_eq!(a, b, "{} and its twin {}", file.display(), twin.display());
     }
+}
+fn nifti_data(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../formats/tests/data/nifti")
+        .join(name)
+}
+
+fn read_depth(path: &Path) -> Vec<f32> {
+    isoscope::cli::npy::read_f32_2d(std::fs::File::open(path).unwrap())
+        .unwrap()
+        .1
+}
+
+#[test]
+fn nifti_renders_like_its_nrrd_twin() {
+    let dir = tempfile::tempdir().unwrap();
+    // (file, isovalue in physical units, extra flags): oblique float sform, scaled int16
+    // (its twin holds the physical values as i16), step 1 of an oblique 4D gzip file.
+    let cases: [(&str, &str, &[&str]); 3] = [
+        ("sform_oblique.nii", "1.2", &[]),
+        ("scaled_i16.nii", "500", &[]),
+        ("example4d.nii.gz", "300", &["--step", "1"]),
+    ];
+    for (name, iso, extra) in cases {
+        let nii = nifti_data(name);
+        let twin = dir.path().join(format!("{name}.nrrd"));
+        let mut args = vec!["convert", s(&nii), "-o", s(&twin)];
+        args.extend_from_slice(extra);
+        ok(&args);
+        let mut depths = Vec::new();
+        for (tag, input) in [("nii", &nii), ("nrrd", &twin)] {
+            let png = dir.path().join(format!("{name}.{tag}.png"));
+            let npy = dir.path().join(format!("{name}.{tag}.npy"));
+            let mut args = vec![
+                "render",
+                s(input),
+                "--iso",
+                iso,
+                "--size",
+                "41x33",
+                "--orbit",
+                "35,25",
+                "-o",
+                s(&png),
+                "--depth-out",
+                s(&npy),
+            ];
+            if tag == "nii" {
+                args.extend_from_slice(extra);
+            }
+            ok(&args);
+            depths.push(read_depth(&npy));
+        }
+        let (a, b) = (&depths[0], &depths[1]);
+        let hits = a.iter().filter(|d| d.is_finite()).count();
+        assert!(hits > 100, "{name}: {hits} hits");
+        for (i, (x, y)) in a.iter().zip(b).enumerate() {
+            assert!(
+                x == y || (x - y).abs() <= 1e-5 * (1.0 + x.abs()),
+                "{name} pixel {i}: {x} vs {y}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_scaled_nifti_is_physical_in_info_and_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let exp: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(nifti_data("expected.json")).unwrap())
+            .unwrap();
+    let e = exp["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["file"] == "scaled_i16.nii")
+        .unwrap();
+    let nii = nifti_data("scaled_i16.nii");
+    let info: serde_json::Value = serde_json::from_str(&ok(&["info", s(&nii), "--json"])).unwrap();
+    assert_eq!(info["value_map"]["slope"], e["scl_slope"]);
+    assert_eq!(info["value_map"]["intercept"], e["scl_inter"]);
+    assert_eq!(info["value_range"][0], e["min"]);
+    assert_eq!(info["value_range"][1], e["max"]);
+    assert_eq!(info["voxel_type"], "i16");
+    assert_eq!(info["world_frame"], "RAS");
+    // A ray along +x at (y, z) = (5.25, 4.5) (the file's affine is the identity): trilinear
+    // interpolation there is linear in x between samples of the bilinear mix of nibabel's four
+    // rows around it, so the first crossing of the isovalue is known exactly.
+    let (y, z, iso) = (5.25, 4.5, 500.0);
+    let rows = exp["profiles"].as_array().unwrap();
+    let row = |j: u64, k: u64| -> Vec<f64> {
+        let r = rows.iter().find(|r| r["j"] == j && r["k"] == k).unwrap();
+        r["values"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    let (fy, fz) = (y - 5.0, z - 4.0);
+    let (r00, r10, r01, r11) = (row(5, 4), row(6, 4), row(5, 5), row(6, 5));
+    let mix: Vec<f64> = (0..r00.len())
+        .map(|i| {
+            (1.0 - fy) * (1.0 - fz) * r00[i]
+                + fy * (1.0 - fz) * r10[i]
+                + (1.0 - fy) * fz * r01[i]
+                + fy * fz * r11[i]
+        })
+        .collect();
+    assert!(mix[0] < iso, "the ray enters below the isovalue");
+    let i = mix.windows(2).position(|w| w[1] >= iso).unwrap();
+    let x_cross = i as f64 + (iso - mix[i]) / (mix[i + 1] - mix[i]);
+    let cam = Camera {
+        eye: Vec3::new(-20.0, y as f32, z as f32),
+        target: Vec3::new(5.0, y as f32, z as f32),
+        up: Vec3::Z,
+        vfov_deg: 20.0,
+        projection: volume_core::render::Projection::Pinhole,
+        ortho_height: None,
+    };
+    let cam_path = dir.path().join("cam.json");
+    std::fs::write(&cam_path, serde_json::to_string(&cam).unwrap()).unwrap();
+    let (png, npy) = (dir.path().join("s.png"), dir.path().join("s.npy"));
+    let (w, h) = (9u32, 7u32);
+    ok(&[
+        "render",
+        s(&nii),
+        "--iso",
+        "500",
+        "--camera",
+        s(&cam_path),
+        "--size",
+        &format!("{w}x{h}"),
+        "-o",
+        s(&png),
+        "--depth-out",
+        s(&npy),
+    ]);
+    let ray = cam.primary_ray(w / 2, h / 2, w, h);
+    assert!((ray.dir - Vec3::X).length() < 1e-6, "{:?}", ray.dir);
+    let want = x_cross - f64::from(ray.origin.x);
+    let got = f64::from(read_depth(&npy)[(h / 2 * w + w / 2) as usize]);
+    assert!(
+        (got - want).abs() < 1e-3,
+        "depth {got} vs {want} (crossing at x = {x_cross})"
+    );
 }

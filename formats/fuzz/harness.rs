@@ -165,6 +165,65 @@ fn read_nrrd_checked(path: &Path) -> Outcome {
     Ok(())
 }
 
+// ---------------------------------------------------------------- NIfTI
+
+/// `nifti`: a NIfTI-1/NIfTI-2/Analyze file through `formats::nifti::read_nifti` (header,
+/// geometry, value map, memory-mapped or gzip data, time steps). The first byte selects how
+/// the rest is laid out in the scratch directory: `0` as `v.nii`; `1` gzip-compressed here
+/// into `v.nii.gz` (so mutations reach the decoded header and data); `2` as `v.nii.gz`
+/// unchanged (the gzip stream itself); `3` a pair, the first 348 bytes as `v.hdr` and the
+/// rest as `v.img`. (Bits above the second are ignored.)
+pub fn nifti(data: &[u8]) -> Outcome {
+    let Some((&selector, rest)) = data.split_first() else {
+        return Err("empty input".into());
+    };
+    let dir = scratch_dir("nifti");
+    // Files of an earlier input (a `v.img` beside this input's `v.hdr`) must not be found.
+    for name in ["v.nii", "v.nii.gz", "v.hdr", "v.img"] {
+        let _ = std::fs::remove_file(dir.join(name));
+    }
+    let path = match selector & 3 {
+        0 => {
+            let p = dir.join("v.nii");
+            std::fs::write(&p, rest).expect("write v.nii");
+            p
+        }
+        1 | 2 => {
+            let p = dir.join("v.nii.gz");
+            let bytes = if selector & 3 == 1 {
+                let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+                std::io::Write::write_all(&mut e, rest).expect("in memory");
+                e.finish().expect("in memory")
+            } else {
+                rest.to_vec()
+            };
+            std::fs::write(&p, bytes).expect("write v.nii.gz");
+            p
+        }
+        _ => {
+            let (h, img) = rest.split_at(rest.len().min(348));
+            let p = dir.join("v.hdr");
+            std::fs::write(&p, h).expect("write v.hdr");
+            std::fs::write(dir.join("v.img"), img).expect("write v.img");
+            p
+        }
+    };
+    match formats::nifti::read_nifti(&path).map_err(err)? {
+        formats::Dataset::Volume(v) => check_volume(&v),
+        formats::Dataset::Series(s) => {
+            let dims = s.first().dims();
+            for i in 0..s.step_count().min(8) {
+                if let Ok(v) = s.step(i) {
+                    check_volume(&v);
+                    assert_eq!(v.dims(), dims, "step {i}");
+                    assert_eq!(v.value_map, s.first().value_map, "step {i}");
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 // ---------------------------------------------------------------- raw + sidecar
 
 /// `raw_sidecar`: JSON sidecar text, NUL, raw file bytes: the sidecar parser, then the layout

@@ -143,6 +143,14 @@ pub enum FormatError {
         name: String,
         reason: String,
     },
+    /// A field of a binary header (NIfTI `dim[3]`, `vox_offset`, ...) that is out of range or
+    /// inconsistent with the file.
+    #[error("{}: header field `{field}`: {reason}", path.display())]
+    BadField {
+        path: PathBuf,
+        field: String,
+        reason: String,
+    },
 }
 
 impl FormatError {
@@ -170,7 +178,8 @@ impl FormatError {
             | FormatError::Page { path, .. }
             | FormatError::OutputIsInput { path, .. }
             | FormatError::OutputExists { path }
-            | FormatError::BadOutput { path, .. } => path,
+            | FormatError::BadOutput { path, .. }
+            | FormatError::BadField { path, .. } => path,
         }
     }
 
@@ -181,7 +190,8 @@ impl FormatError {
             | FormatError::DuplicateField { field, .. }
             | FormatError::BadValue { field, .. }
             | FormatError::Contradiction { field, .. }
-            | FormatError::Unsupported { field, .. } => Some(field),
+            | FormatError::Unsupported { field, .. }
+            | FormatError::BadField { field, .. } => Some(field),
             FormatError::MissingField { field, .. } => Some(field),
             _ => None,
         }

@@ -14,6 +14,9 @@
 //! - [`vtk_image`]: VTK image data, XML `.vti` (every encoding VTK writes) and legacy `.vtk`
 //!   structured points and rectilinear grids (a `.vtk` is a grid or a mesh by its `DATASET`).
 //! - [`tiff`]: TIFF stacks, multi-page or numbered 2D slices, ImageJ spacing and frames.
+//! - [`nifti`]: NIfTI-1 and NIfTI-2 (`.nii`, `.nii.gz`, `.hdr`/`.img` pairs, either byte
+//!   order, sform/qform geometry, `scl_slope` as a value map, 4D as a time series) and
+//!   Analyze 7.5; the NIfTI-1 writer.
 //! - [`series`]: time series from numbered files (`vol_%03d.nrrd`, `vol_*.nrrd`), loaded
 //!   lazily through [`volume_core::series::StepLoader`] (4D NRRD: [`nrrd::NrrdSteps`]).
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
@@ -27,15 +30,12 @@
 //!
 //! The NRRD header parser has a `cargo fuzz` target in `formats/fuzz` (see `formats/README.md`);
 //! its seed corpus replays in the tests.
-//!
-//! ## NIfTI
-//! NIfTI-1 (`.nii`, `.nii.gz`) is not read yet: the `nifti` crate (0.18) was evaluated (see
-//! `formats/README.md`); `open` reports NIfTI files as an unknown format with that note.
 
 pub mod error;
 pub mod input;
 pub mod mesh;
 pub mod metaimage;
+pub mod nifti;
 pub mod nrrd;
 mod oriented;
 pub mod output;
@@ -101,11 +101,11 @@ pub struct OpenOptions {
     pub field: Option<String>,
 }
 
-/// Opens any supported rectilinear file by extension and content: `.nrrd`, `.nhdr`, `.mha`,
-/// `.mhd`, `.vti`, legacy `.vtk` images, `.tif`/`.tiff`, raw files with `options.raw` or a
-/// `NAME.json` sidecar, and numbered series (`vol_%03d.nrrd`, or a glob such as
-/// `vol_*.nrrd`, when no file of that literal name exists). Numbered single-page TIFF files
-/// are the slices of one volume, not a series.
+/// Opens any supported rectilinear file by extension and content: `.nrrd`, `.nhdr`, NIfTI
+/// (`.nii`, `.nii.gz`, `.hdr`/`.img`), `.mha`, `.mhd`, `.vti`, legacy `.vtk` images,
+/// `.tif`/`.tiff`, raw files with `options.raw` or a `NAME.json` sidecar, and numbered series
+/// (`vol_%03d.nrrd`, or a glob such as `vol_*.nrrd`, when no file of that literal name
+/// exists). Numbered single-page TIFF files are the slices of one volume, not a series.
 pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> {
     if !path.exists() && series::is_pattern(path) {
         let files = series::expand_pattern(path)?;
@@ -210,13 +210,9 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         )?;
         return raw::read_raw(path, layout).map(Dataset::Volume);
     }
-    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-        return Err(FormatError::UnknownFormat {
-            path: path.to_path_buf(),
-            reason: "NIfTI is not supported yet (see formats/README.md); convert to NRRD, e.g. \
-                     with 3D Slicer or `c3d in.nii -o out.nrrd`"
-                .into(),
-        });
+    if nifti::is_nifti_path(path) {
+        refuse_unused(path, options, false)?;
+        return nifti::read_nifti(path);
     }
     if let Some(side) = raw::sidecar_path(path)
         && !name.ends_with(".json")
@@ -226,15 +222,26 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         refuse_unused(path, options, false)?;
         return raw::read_raw(path, &layout).map(Dataset::Volume);
     }
-    // Sniff: a NRRD under another name.
-    let mut magic = [0u8; 4];
+    // Sniff: a NRRD or a single-file NIfTI under another name.
     let file = input::open_regular(path).map_err(|e| FormatError::io(path, e))?;
-    let n = std::io::Read::read(&mut &file, &mut magic).map_err(|e| FormatError::io(path, e))?;
-    if n == 4 && &magic == b"NRRD" {
+    let mut magic = Vec::new();
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(&file, nifti::NIFTI1_HEADER_BYTES as u64),
+        &mut magic,
+    )
+    .map_err(|e| FormatError::io(path, e))?;
+    if magic.starts_with(b"NRRD") {
         refuse_unused(path, options, false)?;
         return nrrd::read_nrrd(path);
     }
-    if n == 4 && (&magic == b"II*\0" || &magic == b"MM\0*" || &magic == b"II+\0") {
+    if magic.get(4..8) == Some(b"n+2\0") || magic.get(344..348) == Some(b"n+1\0") {
+        refuse_unused(path, options, false)?;
+        return nifti::read_nifti(path);
+    }
+    if [&b"II*\0"[..], b"MM\0*", b"II+\0"]
+        .iter()
+        .any(|m| magic.starts_with(m))
+    {
         refuse_unused(
             path,
             &OpenOptions {
@@ -247,9 +254,9 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
     }
     Err(FormatError::UnknownFormat {
         path: path.to_path_buf(),
-        reason: "unknown file type: expected .nrrd/.nhdr, .mha/.mhd, .vti, a legacy .vtk \
-                 image, .tif/.tiff, or a raw file with --dims/--type/--endian/--spacing or a \
-                 NAME.json sidecar"
+        reason: "unknown file type: expected .nrrd/.nhdr, .nii/.nii.gz/.hdr, .mha/.mhd, .vti, a \
+                 legacy .vtk image, .tif/.tiff, or a raw file with \
+                 --dims/--type/--endian/--spacing or a NAME.json sidecar"
             .into(),
     })
 }

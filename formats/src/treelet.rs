@@ -27,7 +27,7 @@ use volume_core::ooc::{
     BuildReport, OocError, OocMeta, Quantizer, TreeletLayout, TreeletSink, TreeletStorage,
     build_treelets,
 };
-use volume_core::volume::{AxisCoords, Grid};
+use volume_core::volume::{AxisCoords, Grid, ValueMap, WorldFrame};
 use volume_core::{RectilinearVolume, Voxel, VoxelType};
 
 use crate::FormatError;
@@ -35,7 +35,9 @@ use crate::output::Replace;
 
 /// File magic: "ISOT", then bytes that break text-mode transfers (as PNG does).
 pub const MAGIC: [u8; 8] = *b"ISOT\r\n\x1a\n";
-pub const VERSION: u32 = 1;
+/// The version written. Version 1 (no world frame, no value map) is still read: its values
+/// are physical and its frame unknown.
+pub const VERSION: u32 = 2;
 pub const PAGE: u64 = 4096;
 const FIELD_HEADER: &str = "isot header";
 
@@ -135,6 +137,14 @@ fn encode_header(meta: &OocMeta, plans: &[LevelPlan], data_pages: u64, crc_offse
             }
         }
     }
+    // Version 2: the world frame and the stored → physical value map.
+    h.push(match meta.grid.world_frame() {
+        WorldFrame::Unknown => 0,
+        WorldFrame::Ras => 1,
+        WorldFrame::Lps => 2,
+    });
+    h.extend_from_slice(&meta.value_map.slope.to_le_bytes());
+    h.extend_from_slice(&meta.value_map.intercept.to_le_bytes());
     h.extend_from_slice(&(plans.len() as u32).to_le_bytes());
     for p in plans {
         for x in [
@@ -296,11 +306,11 @@ impl IsotFile {
         }
         let mut c = Cursor { path, bytes, at: 8 };
         let version = c.u32("version")?;
-        if version != VERSION {
+        if !(1..=VERSION).contains(&version) {
             return Err(bad(
                 path,
                 "version",
-                &format!("version {version}, this reader knows {VERSION}"),
+                &format!("version {version}, this reader knows 1 to {VERSION}"),
             ));
         }
         let page = c.u32("page size")?;
@@ -392,14 +402,31 @@ impl IsotFile {
             }
             k => return Err(bad(path, "orientation flag", &format!("{k}"))),
         };
+        let (frame, value_map) = if version >= 2 {
+            let frame = match c.u8("world frame")? {
+                0 => WorldFrame::Unknown,
+                1 => WorldFrame::Ras,
+                2 => WorldFrame::Lps,
+                k => return Err(bad(path, "world frame", &format!("unknown frame {k}"))),
+            };
+            let slope = c.f64("value map")?;
+            let intercept = c.f64("value map")?;
+            let map = ValueMap::new(slope, intercept)
+                .map_err(|e| bad(path, "value map", &e.to_string()))?;
+            (frame, map)
+        } else {
+            (WorldFrame::Unknown, ValueMap::IDENTITY)
+        };
         let axes: [AxisCoords; 3] = axes.try_into().expect("three axes");
         let grid = Grid::new(dims.map(|d| d as usize), axes, world_from_grid)
-            .map_err(|e| FormatError::geometry(path, e))?;
+            .map_err(|e| FormatError::geometry(path, e))?
+            .with_world_frame(frame);
         let meta = OocMeta {
             grid,
             voxel_type: name,
             layout,
             quantizer,
+            value_map,
         };
         let plans = plan_levels(&meta);
         let n = c.u32("level count")? as usize;
@@ -561,6 +588,8 @@ struct PageWriter {
     buf: Vec<u8>,
     io_error: Option<std::io::Error>,
     meta: Option<OocMeta>,
+    /// The volume's value map, recorded in the header (the build works in stored values).
+    value_map: ValueMap,
 }
 
 impl PageWriter {
@@ -598,12 +627,14 @@ impl PageWriter {
 
 impl TreeletSink for PageWriter {
     fn begin(&mut self, meta: &OocMeta) -> Result<(), OocError> {
-        self.plans = plan_levels(meta);
+        let mut meta = meta.clone();
+        meta.value_map = self.value_map;
+        self.plans = plan_levels(&meta);
         let pages = self.plans.last().map_or(0, |p| p.first_page + p.page_count);
         self.crcs = vec![0; pages as usize];
-        let header = encode_header(meta, &self.plans, pages, 0);
+        let header = encode_header(&meta, &self.plans, pages, 0);
         self.data_offset = (header.len() as u64).next_multiple_of(PAGE);
-        self.meta = Some(meta.clone());
+        self.meta = Some(meta);
         Ok(())
     }
 
@@ -663,6 +694,28 @@ pub fn write_isot<T: Voxel>(
     replace: Replace,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<BuildReport, FormatError> {
+    write_isot_mapped(
+        path,
+        grid,
+        voxels,
+        ValueMap::IDENTITY,
+        layout,
+        replace,
+        progress,
+    )
+}
+
+/// [`write_isot`] of stored `voxels` whose physical values are `value_map` of them (recorded
+/// in the header; the out-of-core scene maps isovalues with it).
+fn write_isot_mapped<T: Voxel>(
+    path: &Path,
+    grid: &Grid,
+    voxels: &[T],
+    value_map: ValueMap,
+    layout: TreeletLayout,
+    replace: Replace,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<BuildReport, FormatError> {
     let out = crate::output::OutputFile::create(path, replace)?;
     let mut w = PageWriter {
         file: BufWriter::with_capacity(1 << 20, out),
@@ -675,6 +728,7 @@ pub fn write_isot<T: Voxel>(
         buf: Vec::with_capacity(2 * PAGE as usize),
         io_error: None,
         meta: None,
+        value_map,
     };
     let built = build_treelets(grid, voxels, layout, &mut w, progress).and_then(|r| {
         w.end_level()?;
@@ -720,7 +774,8 @@ pub fn write_isot<T: Voxel>(
     Ok(report)
 }
 
-/// [`write_isot`] for a volume of any voxel type.
+/// [`write_isot`] for a volume of any voxel type; its value map (and world frame) go into
+/// the header.
 pub fn write_isot_volume(
     path: &Path,
     volume: &RectilinearVolume,
@@ -729,7 +784,8 @@ pub fn write_isot_volume(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<BuildReport, FormatError> {
     let g = &volume.grid;
-    volume_core::dispatch_voxels!(&volume.data, b => write_isot(path, g, b.as_slice(), layout, replace, progress))
+    let map = volume.value_map;
+    volume_core::dispatch_voxels!(&volume.data, b => write_isot_mapped(path, g, b.as_slice(), map, layout, replace, progress))
 }
 
 /// Opens `path` as an out-of-core volume: the loader thread starts with the top treelet.
@@ -904,6 +960,40 @@ mod tests {
         assert_eq!(f.meta().voxel_type, VoxelType::F32);
     }
 
+    #[test]
+    fn value_map_and_world_frame_survive_and_version_1_reads_as_identity() {
+        let dir = tempfile::tempdir().unwrap();
+        let grid = Grid::uniform([6, 5, 4], [1.0, 2.0, 3.0], [0.5, 1.0, 2.0])
+            .unwrap()
+            .with_world_frame(WorldFrame::Lps);
+        let stored: Vec<i16> = (0..120).map(|i| i * 9 - 400).collect();
+        let map = ValueMap::new(0.5, -1024.0).unwrap();
+        let v = RectilinearVolume::new(grid.clone(), stored.into())
+            .unwrap()
+            .with_value_map(map);
+        let path = dir.path().join("s.isot");
+        let layout = TreeletLayout::new([6, 5, 4], 2).unwrap();
+        write_isot_volume(&path, &v, layout, Replace::Refuse, &mut |_, _| {}).unwrap();
+        let f = IsotFile::open(&path).unwrap();
+        f.verify().unwrap();
+        assert_eq!(f.meta().value_map, map);
+        assert_eq!(f.meta().grid, grid);
+        // The quantizer stays over the stored values.
+        assert_eq!(
+            (f.meta().quantizer.lo, f.meta().quantizer.hi),
+            (-400.0, 119.0 * 9.0 - 400.0)
+        );
+        // A version-1 file (an `isoscope preprocess` output of before the value map, kept as
+        // a fuzz seed behind its selector byte) still opens: identity map, unknown frame.
+        let seed = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds/isot/ok_i16_h1");
+        let bytes = std::fs::read(&seed).unwrap()[1..].to_vec();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 1);
+        let old = IsotFile::from_bytes(&seed, bytes).unwrap();
+        old.verify().unwrap();
+        assert!(old.meta().value_map.is_identity());
+        assert_eq!(old.meta().grid.world_frame(), WorldFrame::Unknown);
+    }
+
     /// File -> loader -> OocScene at the finest level equals the in-core GridScene.
     #[test]
     fn rendering_from_the_file_equals_in_core() {
@@ -984,6 +1074,7 @@ mod tests {
             voxel_type: VoxelType::U8,
             layout: TreeletLayout::new(dims.map(|d| d as u64), 9).unwrap(),
             quantizer: Quantizer::for_type(VoxelType::U8, 0.0, 255.0),
+            value_map: ValueMap::IDENTITY,
         };
         let plans = plan_levels(&meta);
         let last = plans.last().unwrap();

@@ -20,7 +20,7 @@ fn run(bytes: &[u8]) -> Result<(), String> {
 type Target = fn(&[u8]) -> harness::Outcome;
 
 /// Every fuzz target: its name (the corpus directory) and what it runs.
-const TARGETS: [(&str, Target); 13] = [
+const TARGETS: [(&str, Target); 14] = [
     ("nrrd_header", harness::nrrd_header),
     ("nrrd_data", harness::nrrd_data),
     ("raw_sidecar", harness::raw_sidecar),
@@ -30,6 +30,7 @@ const TARGETS: [(&str, Target); 13] = [
     ("gmsh", harness::gmsh),
     ("tetgen", harness::tetgen),
     ("isot", harness::isot),
+    ("nifti", harness::nifti),
     ("camera_json", harness::camera_json),
     ("metaimage", harness::metaimage),
     ("vti", harness::vti),

@@ -27,11 +27,11 @@ pub const HISTOGRAM_BINS: usize = 64;
 /// Arguments of `isoscope info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file: .nrrd/.nhdr, .mha/.mhd, .vti, a legacy .vtk image, .tif/.tiff (or numbered
-    /// 2D slices such as 'slice_*.tif'), a raw file (with the raw flags or a NAME.json
-    /// sidecar), a time series pattern such as vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral
-    /// mesh (.vtk, .vtu, .msh, .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an
-    /// .isot file.
+    /// Volume file: .nrrd/.nhdr, .nii/.nii.gz, .hdr/.img (NIfTI pair, Analyze), .mha/.mhd,
+    /// .vti, a legacy .vtk image, .tif/.tiff (or numbered 2D slices such as 'slice_*.tif'), a
+    /// raw file (with the raw flags or a NAME.json sidecar), a time series pattern such as
+    /// vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral mesh (.vtk, .vtu, .msh, .node/.ele, .pvd,
+    /// or a pattern such as step_%03d.vtu); or an .isot file.
     pub file: PathBuf,
     /// Print machine-readable JSON (a stable interface, see docs/cli.md).
     #[arg(long)]
@@ -456,8 +456,14 @@ pub struct IsotInfoReport {
     /// Grid-frame positions of the first and last voxel.
     pub origin: [f64; 3],
     pub extent_max: [f64; 3],
-    /// The finite value range recorded in the file (the min/max quantizer's range).
+    /// The finite value range recorded in the file (the min/max quantizer's range), physical
+    /// (through `value_map`).
     pub value_range: Option<[f64; 2]>,
+    /// Stored → physical values (`physical = slope · stored + intercept`), `null` when the
+    /// treelets store physical values (and for version-1 files).
+    pub value_map: Option<volume_core::ValueMap>,
+    /// What the world axes mean: `"RAS"`, `"LPS"` or `"unknown"` (version-1 files).
+    pub world_frame: String,
     pub voxel_count: u64,
     /// Treelet levels (LOD levels; the last is the full resolution).
     pub levels: usize,
@@ -580,7 +586,12 @@ pub fn gather_isot(path: &Path) -> anyhow::Result<IsotInfoReport> {
         spacing: meta.grid.uniform_spacing(),
         origin: lo.to_array(),
         extent_max: hi.to_array(),
-        value_range: (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi).then_some([q.lo, q.hi]),
+        value_range: (q.lo.is_finite() && q.hi.is_finite() && q.lo <= q.hi).then(|| {
+            let (lo, hi) = meta.value_map.range_to_physical((q.lo, q.hi));
+            [lo, hi]
+        }),
+        value_map: (!meta.value_map.is_identity()).then_some(meta.value_map),
+        world_frame: meta.grid.world_frame().name().to_string(),
         voxel_count: meta.layout.voxel_count(),
         levels: meta.layout.level_count(),
         treelet_height: meta.layout.treelet_height(),
@@ -673,6 +684,14 @@ pub fn render_isot_text(r: &IsotInfoReport) -> String {
         fmt3(r.origin),
         fmt3(r.extent_max)
     );
+    let _ = writeln!(out, "world frame:  {}", r.world_frame);
+    if let Some(m) = &r.value_map {
+        let _ = writeln!(
+            out,
+            "values:       physical = {} · stored + {}  (treelets keep {})",
+            m.slope, m.intercept, r.voxel_type
+        );
+    }
     match r.value_range {
         Some([lo, hi]) => {
             let _ = writeln!(out, "value range:  {lo} .. {hi}");

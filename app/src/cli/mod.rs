@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 
 pub mod accuracy;
 pub mod bench;
+pub mod convert;
 pub mod generate;
 pub mod info;
 pub mod npy;
@@ -38,6 +39,9 @@ pub enum Command {
     /// Build the out-of-core treelet file (.isot) of a volume: LOD pyramid, merged min/max
     /// tree, 4 KiB pages with checksums.
     Preprocess(preprocess::Args),
+    /// Convert a volume (NRRD, NIfTI, Analyze, raw, series) to NRRD (.nrrd/.nhdr) or NIfTI
+    /// (.nii/.nii.gz), keeping its geometry and world frame.
+    Convert(convert::Args),
 }
 
 /// Runs a subcommand.
@@ -49,5 +53,6 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Bench(a) => bench::run(&a),
         Command::Accuracy(a) => accuracy::run(&a),
         Command::Preprocess(a) => preprocess::run(&a),
+        Command::Convert(a) => convert::run(&a),
     }
 }

@@ -20,7 +20,8 @@ use crate::progress::Progress;
 /// Arguments of `isoscope preprocess`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input volume (.nrrd/.nhdr, or raw with the raw flags or a NAME.json sidecar).
+    /// Input volume (.nrrd/.nhdr, .nii/.nii.gz, .hdr/.img, or raw with the raw flags or a
+    /// NAME.json sidecar).
     pub input: PathBuf,
     /// Output treelet file (.isot).
     #[arg(short, long, value_name = "OUT.isot")]

@@ -101,9 +101,10 @@ pub fn load_camera(path: &Path) -> anyhow::Result<Camera> {
 #[allow(rustdoc::broken_intra_doc_links)] // clap help text: `[:N]` is shown as typed
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Volume file: .nrrd/.nhdr, a raw file (with the raw flags or a NAME.json sidecar), a
-    /// time series pattern such as vol_%03d.nrrd; a tetrahedral mesh (.vtk, .vtu, .msh,
-    /// .node/.ele, .pvd, or a pattern such as step_%03d.vtu); or an out-of-core .isot file.
+    /// Volume file: .nrrd/.nhdr, .nii/.nii.gz, .hdr/.img (NIfTI pair, Analyze), a raw file (with
+    /// the raw flags or a NAME.json sidecar), a time series pattern such as vol_%03d.nrrd; a
+    /// tetrahedral mesh (.vtk, .vtu, .msh, .node/.ele, .pvd, or a pattern such as
+    /// step_%03d.vtu); or an out-of-core .isot file.
     pub file: PathBuf,
     /// Isosurface: value, optional colour and opacity, e.g. 0.5, 500:#e0d0b0, -300:#ff8060:0.4.
     /// Repeat for several surfaces. Default: one surface at the middle of the value range.

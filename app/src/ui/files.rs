@@ -38,8 +38,40 @@ fn name_of(p: &Path) -> Option<&str> {
     p.file_name().and_then(|n| n.to_str())
 }
 
+/// `files` without the `.img`/`.img.gz` of an Analyze/NIfTI pair whose `.hdr` is also
+/// given: the pair is one volume (dropping both parts opens it once).
+fn without_pair_images(files: &[PathBuf]) -> Vec<PathBuf> {
+    // (folder, lower-case stem, is the image part) of a pair's file.
+    fn part(p: &Path) -> Option<(Option<&Path>, String, bool)> {
+        let n = name_of(p)?.to_ascii_lowercase();
+        [
+            (".img", true),
+            (".img.gz", true),
+            (".hdr", false),
+            (".hdr.gz", false),
+        ]
+        .iter()
+        .find_map(|(e, image)| Some((p.parent(), n.strip_suffix(e)?.to_owned(), *image)))
+    }
+    let headers: Vec<_> = files
+        .iter()
+        .filter_map(|f| part(f))
+        .filter(|(_, _, image)| !image)
+        .map(|(dir, stem, _)| (dir, stem))
+        .collect();
+    files
+        .iter()
+        .filter(|f| match part(f) {
+            Some((dir, stem, true)) => !headers.contains(&(dir, stem)),
+            _ => true,
+        })
+        .cloned()
+        .collect()
+}
+
 /// Groups `files` (see the module docs). Empty input gives an empty list.
 pub fn group_files(files: &[PathBuf]) -> FileGroup {
+    let files = &without_pair_images(files)[..];
     let list = |reason: &str| FileGroup::List {
         files: files.to_vec(),
         reason: reason.to_owned(),
@@ -201,6 +233,24 @@ mod tests {
                 p
             })
             .collect()
+    }
+
+    #[test]
+    fn an_analyze_or_nifti_pair_opens_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let pair = touch(dir.path(), &["t1.img", "t1.hdr"]);
+        assert_eq!(group_files(&pair), FileGroup::Single(pair[1].clone()));
+        let gz = touch(dir.path(), &["b.hdr.gz", "b.img.gz"]);
+        assert_eq!(group_files(&gz), FileGroup::Single(gz[0].clone()));
+        // Two pairs of a numbered series: the headers form the series.
+        let series = touch(
+            dir.path(),
+            &["s_01.hdr", "s_01.img", "s_02.hdr", "s_02.img"],
+        );
+        assert!(matches!(
+            group_files(&series),
+            FileGroup::Series { steps: 2, .. }
+        ));
     }
 
     #[test]

@@ -4,7 +4,8 @@
 `ok_*` seeds are valid inputs that the corpus replay (formats/tests/fuzz_corpus.rs) requires
 the reader to accept; `bad_*` seeds are hostile inputs that only must not panic. Mesh seeds
 also come from formats/tests/data/mesh (copied by the replay test's list, not here). The
-`.isot` seeds are written by `isoscope preprocess` (see isot_seeds() below).
+`.isot` seeds are written by `isoscope preprocess` (see isot_seeds() below); the NIfTI seeds
+are the small nibabel-written files of formats/tests/data/nifti.
 """
 import bz2, gzip, json, os, struct, subprocess, sys
 
@@ -184,6 +185,28 @@ def image_seeds(data_dir):
     seed("tiff", "ok_slice.tif", read("tiff", "slices", "slice_000.tif"))
     tif = read("tiff", "deflate_i32.tif")
     seed("tiff", "bad_cut.tif", tif[: len(tif) // 2])
+def nifti_seeds(nifti_dir):
+    """The small files written by nibabel (formats/tests/data/nifti) behind the harness's
+    selector byte: 0 a .nii, 1 compressed by the harness, 2 a .nii.gz as is, 3 a pair."""
+    def read(name):
+        with open(os.path.join(nifti_dir, name), "rb") as f:
+            return f.read()
+    for name in ["u16.nii", "big_endian.nii", "scaled_i16.nii", "qform_qfac.nii",
+                 "sform_oblique.nii"]:
+        put("nifti", "ok_" + name, b"\x00" + read(name))
+    put("nifti", "ok_compressed_u16.nii", b"\x01" + read("u16.nii"))
+    put("nifti", "ok_f64.nii.gz", b"\x02" + read("f64.nii.gz"))
+    put("nifti", "ok_pair.hdr", b"\x03" + read("pair.hdr") + read("pair.img"))
+    put("nifti", "ok_analyze_spm.hdr", b"\x03" + read("analyze_spm.hdr") + read("analyze_spm.img"))
+    # A 4D NIfTI-2 (big-endian) cut to its first step: dim[4] = 1 keeps it valid.
+    n2 = bytearray(read("nifti2_be_4d.nii"))
+    n2[16 + 8 * 4:24 + 8 * 4] = struct.pack(">q", 1)
+    put("nifti", "ok_nifti2_be.nii", b"\x00" + bytes(n2[:544 + 12 * 10 * 8 * 4]))
+    # Hostile: a header claiming far more data than follows, a bad gzip stream.
+    big = bytearray(read("u16.nii"))
+    big[46:48] = struct.pack("<h", 30000)
+    put("nifti", "bad_dim3_beyond_data.nii", b"\x00" + bytes(big))
+    put("nifti", "bad_not_gzip.nii.gz", b"\x02" + read("u16.nii")[:600])
 
 
 if __name__ == "__main__":
@@ -194,5 +217,6 @@ if __name__ == "__main__":
     pvd_seeds()
     camera_seeds()
     image_seeds(os.path.join(HERE, "..", "..", "tests", "data"))
+    nifti_seeds(os.path.join(HERE, "..", "..", "tests", "data", "nifti"))
     if len(sys.argv) > 1:
         isot_seeds(sys.argv[1])

@@ -36,6 +36,9 @@ pub(crate) struct DataPlan {
     compressed_bytes: Option<u64>,
     /// Raw encoding: each file's map and the offset of its data, made on first use.
     maps: Vec<OnceLock<(Arc<Mmap>, u64)>>,
+    /// Bytes after the data are ignored (NIfTI) rather than refused (NRRD); a compressed
+    /// stream is still read to its end when its last bytes load (its checksum).
+    trailing_ok: bool,
 }
 
 /// The parts of a [`DataPlan`] for a header format other than NRRD.
@@ -98,7 +101,39 @@ impl DataPlan {
             zlib: parts.zlib,
             compressed_bytes: parts.compressed_bytes,
             maps,
+            trailing_ok: false,
         }
+    }
+
+    /// The data of one file that is not a NRRD (NIfTI): `total_bytes` at byte `offset` of
+    /// the file (raw, memory-mapped) or of its decompressed stream (gzip); bytes after the
+    /// data are ignored.
+    pub(crate) fn single_file(
+        path: &Path,
+        encoding: Encoding,
+        offset: u64,
+        total_bytes: u64,
+        endian: Endian,
+        voxel_type: VoxelType,
+    ) -> Self {
+        let (base_offset, byte_skip) = match encoding {
+            // The skip of a compressed stream counts decompressed bytes (as NRRD's byte skip).
+            Encoding::Raw => (offset, 0),
+            _ => (0, i64::try_from(offset).unwrap_or(i64::MAX)),
+        };
+        let mut plan = Self::from_parts(PlanParts {
+            files: vec![path.to_path_buf()],
+            base_offset,
+            total_bytes,
+            encoding,
+            zlib: false,
+            endian,
+            voxel_type,
+            byte_skip,
+            compressed_bytes: None,
+        });
+        plan.trailing_ok = true;
+        plan
     }
 
     pub(crate) fn file_count(&self) -> usize {
@@ -180,7 +215,7 @@ impl DataPlan {
                 available: file_len,
             });
         }
-        if end < file_len {
+        if end < file_len && !self.trailing_ok {
             return Err(FormatError::TooLong {
                 path: path.clone(),
                 offset: end,
@@ -266,7 +301,18 @@ impl DataPlan {
                 read_exact_capped(path, name, &mut dec, skip.saturating_add(a), None)?;
                 read_exact_capped(path, name, &mut dec, b - a, Some(out))
                     .map_err(|e| shift_offset(e, skip.saturating_add(a)))?;
-                if whole_tail {
+                if whole_tail && self.trailing_ok {
+                    // Bytes after the data are allowed, but the stream must still be whole:
+                    // reading it to its end checks the gzip CRC (discarding, nothing kept).
+                    std::io::copy(&mut dec, &mut std::io::sink()).map_err(|e| {
+                        FormatError::Decode {
+                            path: path.clone(),
+                            encoding: name,
+                            offset: skip.saturating_add(b),
+                            reason: e.to_string(),
+                        }
+                    })?;
+                } else if whole_tail {
                     let mut one = [0u8; 1];
                     match dec.read(&mut one) {
                         Ok(0) => {}

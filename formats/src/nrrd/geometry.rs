@@ -18,7 +18,7 @@
 
 use std::path::Path;
 
-use glam::{DAffine3, DMat3, DVec3};
+use glam::{DAffine3, DVec3};
 use volume_core::{AxisCoords, Grid, WorldFrame};
 
 use super::header::{Center, NrrdHeader};
@@ -166,51 +166,25 @@ impl NrrdHeader {
                 reason: format!("space dimension {sd}; only 3-dimensional spaces are supported"),
             });
         }
-        let mut cols = [DVec3::ZERO; 3];
-        let mut spacing = [0.0; 3];
+        let mut directions = [DVec3::ZERO; 3];
         for (i, &a) in spatial.iter().enumerate() {
             let d = dirs[a]
                 .as_ref()
                 .ok_or_else(|| bad(format!("spatial axis {a} has direction `none`")))?;
-            let v = DVec3::new(d[0], d[1], d[2]);
-            let len = v.length();
-            if !(len.is_finite() && len > 0.0) {
-                return Err(bad(format!("axis {a}: direction {v} has no length")));
-            }
-            cols[i] = v / len;
-            spacing[i] = len;
+            directions[i] = DVec3::new(d[0], d[1], d[2]);
         }
         let origin = self
             .space_origin
             .as_ref()
             .map_or(DVec3::ZERO, |o| DVec3::new(o[0], o[1], o[2]));
-        let axis_aligned = (0..3).all(|i| {
-            (0..3).all(|c| {
-                if c == i {
-                    cols[i][c] > 0.0
-                } else {
-                    cols[i][c] == 0.0
-                }
-            })
-        });
         let geometry = |e| FormatError::geometry(path, e);
-        let (axes, world_from_grid) = if axis_aligned {
-            let axes = [0, 1, 2].map(|i| AxisCoords::Uniform {
-                origin: origin[i],
-                spacing: spacing[i],
-            });
-            (axes, None)
-        } else {
-            let axes = spacing.map(|s| AxisCoords::Uniform {
-                origin: 0.0,
-                spacing: s,
-            });
-            let m = DAffine3::from_mat3_translation(
-                DMat3::from_cols(cols[0], cols[1], cols[2]),
-                origin,
-            );
-            (axes, Some(m))
-        };
+        let (axes, world_from_grid) = crate::oriented::axes_from_directions(directions, origin)
+            .map_err(|i| {
+                bad(format!(
+                    "axis {}: direction {} has no length",
+                    spatial[i], directions[i]
+                ))
+            })?;
         let origin_too_far = origin.abs().max_element() > volume_core::volume::MAX_WORLD_COORD;
         let field = if origin_too_far {
             "space origin"

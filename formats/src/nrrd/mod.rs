@@ -4,7 +4,8 @@
 //! - [`geometry`]: axes → grid (oriented or uniform) and time steps.
 //! - `data`: decoding (raw memory-mapped, gzip, bzip2, ascii, hex), skips, data file lists.
 //! - [`NrrdSteps`]: the lazily loaded time steps of a 4D NRRD.
-//! - [`write_nrrd`]: NRRD0004, raw or gzip, written to a temporary file and renamed.
+//! - [`write_nrrd`]: NRRD0004, raw or gzip, written to a temporary file and renamed;
+//!   [`write_nrrd_detached`]: the same as a `.nhdr` header and a `.raw`/`.raw.gz` data file.
 //!
 //! A 3D file (or 4D with a leading size-1 axis) opens as a volume; a 4D file with a time axis,
 //! or a detached header whose data files hold one step each, opens as a time series whose steps
@@ -27,7 +28,7 @@ pub use header::{
     Center, DataFiles, Encoding, MAX_HEADER_BYTES, NrrdHeader, parse_header, parse_header_at,
 };
 pub use steps::NrrdSteps;
-pub use write::{NrrdEncoding, write_nrrd};
+pub use write::{NrrdEncoding, write_nrrd, write_nrrd_detached};
 
 use volume_core::RectilinearVolume;
 use volume_core::series::TimeSeries;

@@ -49,6 +49,16 @@ pub(crate) fn header_text(
     volume: &RectilinearVolume,
     encoding: NrrdEncoding,
 ) -> Result<String, FormatError> {
+    header_with_data_file(path, volume, encoding, None)
+}
+
+/// The header text; with `data_file`, a detached header naming it (ends with a newline).
+fn header_with_data_file(
+    path: &Path,
+    volume: &RectilinearVolume,
+    encoding: NrrdEncoding,
+    data_file: Option<&str>,
+) -> Result<String, FormatError> {
     let grid = &volume.grid;
     if !volume.value_map.is_identity() {
         // NRRD has no linear rescale field: writing the stored values alone would change
@@ -123,6 +133,10 @@ pub(crate) fn header_text(
             NrrdEncoding::Gzip => "gzip",
         }
     );
+    if let Some(name) = data_file {
+        let _ = writeln!(h, "data file: {name}");
+        return Ok(h);
+    }
     // Pad with a comment so the data starts 8-byte aligned: readers can then view it in place
     // in a memory map (zero copy) for every voxel type.
     let mut pad = (8 - (h.len() + 1) % 8) % 8;
@@ -147,21 +161,76 @@ pub fn write_nrrd(
     replace: Replace,
 ) -> Result<(), FormatError> {
     let header = header_text(path, volume, encoding)?;
-    let io = |e: std::io::Error| FormatError::io(path, e);
     crate::output::write_output_with(path, replace, |w| {
-        w.write_all(header.as_bytes()).map_err(io)?;
-        let bytes: &[u8] =
-            volume_core::dispatch_voxels!(&volume.data, b => bytemuck::cast_slice(b.as_slice()));
-        match encoding {
-            NrrdEncoding::Raw => w.write_all(bytes).map_err(io)?,
-            NrrdEncoding::Gzip => {
-                let mut gz = flate2::write::GzEncoder::new(w, flate2::Compression::new(6));
-                gz.write_all(bytes).map_err(io)?;
-                gz.finish().map_err(io)?;
-            }
-        }
-        Ok(())
+        w.write_all(header.as_bytes())
+            .map_err(|e| FormatError::io(path, e))?;
+        write_data(path, w, volume, encoding)
     })
+}
+
+/// Writes the voxels of `volume` (native order, `encoding`) to `w`.
+fn write_data(
+    path: &Path,
+    w: &mut dyn Write,
+    volume: &RectilinearVolume,
+    encoding: NrrdEncoding,
+) -> Result<(), FormatError> {
+    let io = |e: std::io::Error| FormatError::io(path, e);
+    let bytes: &[u8] =
+        volume_core::dispatch_voxels!(&volume.data, b => bytemuck::cast_slice(b.as_slice()));
+    match encoding {
+        NrrdEncoding::Raw => w.write_all(bytes).map_err(io),
+        NrrdEncoding::Gzip => {
+            let mut gz = flate2::write::GzEncoder::new(w, flate2::Compression::new(6));
+            gz.write_all(bytes).map_err(io)?;
+            gz.finish().map_err(io)?;
+            Ok(())
+        }
+    }
+}
+
+/// Writes `volume` as a detached NRRD: the header at `path` (`NAME.nhdr`) and the data in
+/// `NAME.raw` (raw) or `NAME.raw.gz` (gzip) beside it, named by its `data file:` field.
+/// Both outputs are checked first (never over an input; existing files only with
+/// [`Replace::Allow`]); the data is written before the header, so a header never names data
+/// that is not complete.
+pub fn write_nrrd_detached(
+    path: &Path,
+    volume: &RectilinearVolume,
+    encoding: NrrdEncoding,
+    replace: Replace,
+) -> Result<(), FormatError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem = match name.rfind('.') {
+        Some(i) if i > 0 => &name[..i],
+        _ => &name[..],
+    };
+    let data_name = format!(
+        "{stem}.raw{}",
+        if encoding == NrrdEncoding::Gzip {
+            ".gz"
+        } else {
+            ""
+        }
+    );
+    if data_name.chars().any(char::is_whitespace) {
+        return Err(FormatError::BadOutput {
+            path: path.to_path_buf(),
+            reason: "a detached NRRD's data file name may not contain spaces".into(),
+        });
+    }
+    let data_path = path.with_file_name(&data_name);
+    let header = header_with_data_file(path, volume, encoding, Some(&data_name))?;
+    crate::output::check_output(&data_path, replace)?;
+    crate::output::check_output(path, replace)?;
+    crate::output::check_distinct(&[path, &data_path])?;
+    crate::output::write_output_with(&data_path, replace, |w| {
+        write_data(&data_path, w, volume, encoding)
+    })?;
+    crate::output::write_output(path, header.as_bytes(), replace)
 }
 
 #[cfg(test)]
@@ -252,6 +321,38 @@ mod tests {
         let e = write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap_err();
         assert!(e.to_string().contains("rescale"), "{e}");
         assert!(!p.exists());
+    }
+
+    #[test]
+    fn detached_headers_name_their_data_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let v = sample(
+            Grid::uniform([4, 3, 2], [1.0, -2.0, 0.5], [0.5, 1.0, 2.0])
+                .unwrap()
+                .with_world_frame(WorldFrame::Lps),
+        );
+        for (enc, data) in [
+            (NrrdEncoding::Raw, "d.raw"),
+            (NrrdEncoding::Gzip, "g.raw.gz"),
+        ] {
+            let p = dir
+                .path()
+                .join(data.replace(".raw", ".nhdr").replace(".gz", ""));
+            write_nrrd_detached(&p, &v, enc, Replace::Refuse).unwrap();
+            let text = std::fs::read_to_string(&p).unwrap();
+            assert!(text.contains(&format!("data file: {data}")), "{text}");
+            assert!(dir.path().join(data).is_file());
+            // Both outputs exist now: refused without --force.
+            let e = write_nrrd_detached(&p, &v, enc, Replace::Refuse).unwrap_err();
+            assert!(matches!(e, FormatError::OutputExists { .. }), "{e}");
+            let r = read_volume(&p);
+            assert_eq!(r.grid, v.grid);
+            assert_eq!(r.data.is_shared(), enc == NrrdEncoding::Raw);
+            assert_eq!(r.value_f64(3, 2, 1), v.value_f64(3, 2, 1));
+            // Once read, the data file is an input: never an output, even with --force.
+            let e = write_nrrd_detached(&p, &v, enc, Replace::Allow).unwrap_err();
+            assert!(matches!(e, FormatError::OutputIsInput { .. }), "{e}");
+        }
     }
 
     #[test]

@@ -111,6 +111,7 @@ pub fn build_treelets<T: Voxel, S: TreeletSink + Send + ?Sized>(
         voxel_type: T::TYPE,
         layout,
         quantizer,
+        value_map: crate::volume::ValueMap::IDENTITY,
     };
     sink.begin(&meta)?;
     let layout = &meta.layout;

@@ -209,11 +209,11 @@ impl<T: Voxel> std::fmt::Debug for OocVolume<T> {
     }
 }
 
-/// Code bounds of `isovalues` (all-pass when there are more than fit inline).
+/// Code bounds of physical `isovalues` (all-pass when there are more than fit inline).
 fn queries_of(meta: &OocMeta, isovalues: &[f32]) -> (Vec<CodeQuery>, bool) {
     let q: Vec<CodeQuery> = isovalues
         .iter()
-        .filter_map(|&c| meta.quantizer.query(c))
+        .filter_map(|&c| meta.quantizer.query(meta.value_map.iso_to_stored(c)))
         .collect();
     let all = q.len() > INLINE_ISOVALUES;
     (if all { Vec::new() } else { q }, all)
@@ -761,7 +761,7 @@ impl<T: Voxel> OocIsovalues<T> {
         let mut count = 0;
         let mut all = false;
         for &c in isovalues {
-            if let Some(q) = meta.quantizer.query(c) {
+            if let Some(q) = meta.quantizer.query(meta.value_map.iso_to_stored(c)) {
                 if count == INLINE_ISOVALUES {
                     all = true;
                     break;
@@ -771,7 +771,7 @@ impl<T: Voxel> OocIsovalues<T> {
             }
         }
         Self {
-            set: IsoSet::new(isovalues),
+            set: IsoSet::mapped(isovalues, meta.value_map),
             queries,
             count,
             all,
@@ -1263,6 +1263,41 @@ mod tests {
         }
         assert!(hits > 500, "{hits}");
         assert!(vol.resident_bytes() > 0);
+    }
+
+    #[test]
+    fn physical_isovalues_through_a_value_map_hit_as_in_core() {
+        // A reversing map (slope −2, intercept 10): physical 2 and −3 are stored 4 and 6.5.
+        let dims = [31, 23, 17];
+        let grid = Grid::uniform(dims, [-3.0, 1.0, 2.0], [1.0, 0.75, 1.5]).unwrap();
+        let voxels = blobs(dims);
+        let layout = TreeletLayout::new(dims.map(|d| d as u64), 4).unwrap();
+        let mut store = MemoryStorage::new();
+        build_treelets(&grid, &voxels, layout, &mut store, &mut |_, _| {}).unwrap();
+        let map = crate::volume::ValueMap::new(-2.0, 10.0).unwrap();
+        store.set_value_map(map);
+        let vol = OocVolume::<f32>::open(Arc::new(store), OocOptions::default()).unwrap();
+        let isos = [2.0f32, -3.0];
+        vol.set_isovalues(&isos);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert_eq!(vol.loaded_levels(), vol.level_count());
+        let ooc = vol.scene(Intersector::Exact);
+        let mut incore = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        incore.set_value_map(map);
+        let mut hits = 0;
+        for r in rays(incore.world_bounds(), 2000) {
+            let a = incore.first_hit(&r, 0.0, f32::INFINITY, &isos, &mut NoStats);
+            let b = ooc.first_hit(&r, 0.0, f32::INFINITY, &isos, &mut NoStats);
+            assert_eq!(a, b, "{r:?}");
+            hits += usize::from(a.is_some());
+        }
+        assert!(hits > 300, "{hits}");
     }
 
     #[test]

@@ -24,7 +24,7 @@ use std::fmt;
 use super::OocError;
 use super::layout::TreeletLayout;
 use super::quantize::Quantizer;
-use crate::volume::Grid;
+use crate::volume::{Grid, ValueMap};
 use crate::voxel::{Voxel, VoxelType};
 
 const HEADER_BYTES: usize = 40;
@@ -35,7 +35,12 @@ pub struct OocMeta {
     pub grid: Grid,
     pub voxel_type: VoxelType,
     pub layout: TreeletLayout,
+    /// Over the stored values (treelets hold stored values and their codes).
     pub quantizer: Quantizer,
+    /// Stored → physical values: isovalues are physical and mapped once per frame
+    /// ([`crate::intersect::IsoSet::mapped`]); the build works in stored values and leaves
+    /// this the identity, the file records the volume's map.
+    pub value_map: ValueMap,
 }
 
 impl OocMeta {
@@ -248,6 +253,14 @@ impl MemoryStorage {
     /// Number of `fetch` calls so far.
     pub fn fetch_count(&self) -> u64 {
         self.fetches.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Records the map from the stored values to physical ones, as a file's header does
+    /// (the build leaves it the identity).
+    pub fn set_value_map(&mut self, value_map: ValueMap) {
+        if let Some(m) = &mut self.meta {
+            m.value_map = value_map;
+        }
     }
 
     /// Mutable access to a stored record (tests corrupt it).
