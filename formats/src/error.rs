@@ -128,6 +128,22 @@ pub enum FormatError {
     /// The file's kind could not be determined, or it is not something `open` reads.
     #[error("{}: {reason}", path.display())]
     UnknownFormat { path: PathBuf, reason: String },
+    /// A DICOM file whose structure is broken (a length beyond the file, a bad sequence) or
+    /// that cannot be a volume slice (a color image, 1-bit pixels).
+    #[error("{}: DICOM: {reason}", path.display())]
+    DicomFile { path: PathBuf, reason: String },
+    /// A DICOM attribute that is missing or wrong; `attribute` is its keyword and tag, e.g.
+    /// `ImagePositionPatient (0020,0032)`.
+    #[error("{}: DICOM {attribute}: {reason}", path.display())]
+    DicomAttribute {
+        path: PathBuf,
+        attribute: String,
+        reason: String,
+    },
+    /// A DICOM series that cannot be one volume (duplicate positions, missing slices, mixed
+    /// sizes) or a series choice that does not match; `path` is the file, folder or DICOMDIR.
+    #[error("{}: {reason}", path.display())]
+    DicomSeries { path: PathBuf, reason: String },
 }
 
 impl FormatError {
@@ -151,6 +167,9 @@ impl FormatError {
             | FormatError::Sidecar { path, .. }
             | FormatError::Series { path, .. }
             | FormatError::UnknownFormat { path, .. }
+            | FormatError::DicomFile { path, .. }
+            | FormatError::DicomAttribute { path, .. }
+            | FormatError::DicomSeries { path, .. }
             | FormatError::OutputIsInput { path, .. }
             | FormatError::OutputExists { path }
             | FormatError::BadOutput { path, .. } => path,
@@ -164,7 +183,10 @@ impl FormatError {
             | FormatError::DuplicateField { field, .. }
             | FormatError::BadValue { field, .. }
             | FormatError::Contradiction { field, .. }
-            | FormatError::Unsupported { field, .. } => Some(field),
+            | FormatError::Unsupported { field, .. }
+            | FormatError::DicomAttribute {
+                attribute: field, ..
+            } => Some(field),
             FormatError::MissingField { field, .. } => Some(field),
             _ => None,
         }

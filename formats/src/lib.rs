@@ -13,6 +13,8 @@
 //!   lazily through [`volume_core::series::StepLoader`] (4D NRRD: [`nrrd::NrrdSteps`]).
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
 //!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
+//! - [`dicom`]: DICOM series (a folder, a `DICOMDIR`, one file's series, a list of files) as
+//!   volumes in LPS, through dicom-rs, with `--series` picking one of several.
 //! - [`open`]: picks the reader from the name and contents.
 //! - [`input`]: every reader opens its files through [`input::open_regular`] (regular files
 //!   only: a FIFO, device or directory is refused before it is opened), and records it in
@@ -27,6 +29,7 @@
 //! NIfTI-1 (`.nii`, `.nii.gz`) is not read yet: the `nifti` crate (0.18) was evaluated (see
 //! `formats/README.md`); `open` reports NIfTI files as an unknown format with that note.
 
+pub mod dicom;
 pub mod error;
 pub mod input;
 pub mod mesh;
@@ -80,17 +83,30 @@ impl Dataset {
     }
 }
 
-/// Options for files that do not describe themselves (raw) — mirrors the CLI flags.
+/// Options for files that do not describe themselves (raw) and for inputs that hold several
+/// datasets (DICOM folders) — mirrors the CLI flags.
 #[derive(Default, Clone, Debug)]
 pub struct OpenOptions {
     pub raw: Option<raw::RawLayout>,
+    /// DICOM: the series to open when the input holds several: its number in
+    /// [`dicom::list`] (`"2"`) or its SeriesInstanceUID (the CLI's `--series`).
+    pub dicom_series: Option<String>,
 }
 
 /// Opens any supported rectilinear file by extension and content: `.nrrd`, `.nhdr`, raw files
-/// with `options.raw` or a `NAME.json` sidecar, and numbered series (`vol_%03d.nrrd`, or a
-/// glob such as `vol_*.nrrd`, when no file of that literal name exists).
+/// with `options.raw` or a `NAME.json` sidecar, numbered series (`vol_%03d.nrrd`, or a
+/// glob such as `vol_*.nrrd`, when no file of that literal name exists), and DICOM (a folder,
+/// a `DICOMDIR`, a file and its series, or a glob of DICOM files: [`dicom`]).
 pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> {
+    let pick = options.dicom_series.as_deref();
+    if path.is_dir() {
+        return dicom::open(path, pick);
+    }
     if !path.exists() && series::is_pattern(path) {
+        let files = series::expand_pattern(path)?;
+        if dicom::is_dicom_input(&files[0]) {
+            return dicom::open_files(&files, path, pick);
+        }
         return series::open_file_series(path, options).map(Dataset::Series);
     }
     open_file(path, options)
@@ -109,6 +125,9 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
     }
     if let Some(layout) = &options.raw {
         return raw::read_raw(path, layout).map(Dataset::Volume);
+    }
+    if dicom::is_dicom_input(path) {
+        return dicom::open(path, options.dicom_series.as_deref());
     }
     if name.ends_with(".nii") || name.ends_with(".nii.gz") {
         return Err(FormatError::UnknownFormat {

@@ -68,7 +68,10 @@ fn opening_a_4gb_raw_file_maps_it_without_reading() {
     assert_eq!(buf.as_slice().len(), 1 << 30);
 
     // The same through `open` with the layout given as options (the CLI path).
-    let options = OpenOptions { raw: Some(layout) };
+    let options = OpenOptions {
+        raw: Some(layout),
+        ..OpenOptions::default()
+    };
     let Dataset::Volume(v) = formats::open(&path, &options).unwrap() else {
         panic!("volume expected")
     };

@@ -83,6 +83,7 @@ impl OpenArgs {
                 spacing: self.spacing.unwrap_or([1.0; 3]),
                 origin: self.origin.unwrap_or([0.0; 3]),
             }),
+            ..formats::OpenOptions::default()
         })
     }
 }

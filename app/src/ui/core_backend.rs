@@ -314,6 +314,7 @@ fn scene_options(
     Ok(SceneOptions {
         open: formats::OpenOptions {
             raw: raw.map(raw_layout).transpose()?,
+            ..formats::OpenOptions::default()
         },
         intersector: intersector(choices.intersector),
         normals: normals(choices.smooth_normals),
