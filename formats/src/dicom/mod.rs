@@ -462,33 +462,56 @@ fn resolve(base: &Path, parts: &[String]) -> Option<PathBuf> {
     at.is_file().then_some(at)
 }
 
-/// Reads the attributes of `files` (in parallel) and groups their images.
+/// Reads the attributes of `files` (in parallel) and groups their images. A file that cannot
+/// be read is an error, except, for a one-file input (`focus`), another file of its folder
+/// that does not contain the named file's SeriesInstanceUID: that one is noted and skipped.
 fn collect_files(
     files: Vec<PathBuf>,
     root: &Path,
     focus: Option<usize>,
 ) -> Result<Collection, FormatError> {
-    let contents: Vec<Content> = files
+    let results: Vec<Result<Content, FormatError>> = files
         .par_iter()
         .map(|f| {
             let dicom = file::read(f, file::Want::ImageAttributes)?;
             attributes::content(&dicom)
         })
-        .collect::<Result<_, _>>()?;
+        .collect();
+    let focus_uid = focus.and_then(|f| match &results[f] {
+        Ok(Content::Image(info)) if !info.series_uid.is_empty() => Some(info.series_uid.clone()),
+        _ => None,
+    });
     let mut skipped = Vec::new();
+    let mut contents = Vec::with_capacity(files.len());
+    for (i, r) in results.into_iter().enumerate() {
+        match r {
+            Ok(c) => contents.push(Some(c)),
+            Err(e) => match &focus_uid {
+                Some(uid) if Some(i) != focus && !mentions(&files[i], uid) => {
+                    skipped.push(SkippedFile {
+                        path: files[i].clone(),
+                        reason: format!("unreadable, and not of the opened series: {e}"),
+                    });
+                    contents.push(None);
+                }
+                _ => return Err(e),
+            },
+        }
+    }
     let mut images = Vec::new();
     for (i, c) in contents.iter().enumerate() {
         match c {
-            Content::Image(info) => images.push((i, info.as_ref())),
-            Content::Skip(reason) => skipped.push(SkippedFile {
+            Some(Content::Image(info)) => images.push((i, info.as_ref())),
+            Some(Content::Skip(reason)) => skipped.push(SkippedFile {
                 path: files[i].clone(),
                 reason: reason.clone(),
             }),
+            None => {}
         }
     }
     let groups = series::group(&images);
     if let Some(f) = focus
-        && let Content::Skip(reason) = &contents[f]
+        && let Some(Content::Skip(reason)) = &contents[f]
     {
         return Err(FormatError::DicomFile {
             path: files[f].clone(),
@@ -501,5 +524,12 @@ fn collect_files(
         groups,
         skipped,
         focus,
+    })
+}
+
+/// True if the bytes of `path` contain `uid` (or cannot be read: then assume they might).
+fn mentions(path: &Path, uid: &str) -> bool {
+    crate::input::read_regular(path).map_or(true, |bytes| {
+        bytes.windows(uid.len()).any(|w| w == uid.as_bytes())
     })
 }
