@@ -20,7 +20,7 @@ fn run(bytes: &[u8]) -> Result<(), String> {
 type Target = fn(&[u8]) -> harness::Outcome;
 
 /// Every fuzz target: its name (the corpus directory) and what it runs.
-const TARGETS: [(&str, Target); 10] = [
+const TARGETS: [(&str, Target); 11] = [
     ("nrrd_header", harness::nrrd_header),
     ("nrrd_data", harness::nrrd_data),
     ("raw_sidecar", harness::raw_sidecar),
@@ -31,6 +31,7 @@ const TARGETS: [(&str, Target); 10] = [
     ("tetgen", harness::tetgen),
     ("isot", harness::isot),
     ("camera_json", harness::camera_json),
+    ("dicom", harness::dicom),
 ];
 
 fn fuzz_dir() -> PathBuf {

@@ -372,7 +372,7 @@ pub(crate) fn content(file: &DicomFile) -> Result<Content, FormatError> {
     // Sizes against the data before anything is allocated.
     match &pixel.value {
         PixelValue::Native(range) => {
-            let needed = frame_count as u64 * format.frame_bytes() as u64;
+            let needed = (frame_count as u64).saturating_mul(format.frame_bytes() as u64);
             let have = (range.end - range.start) as u64;
             if have < needed && matches!(file.syntax.codec, PixelCodec::Native { .. }) {
                 return Err(FormatError::TooShort {
@@ -396,6 +396,29 @@ pub(crate) fn content(file: &DicomFile) -> Result<Content, FormatError> {
                     reason: format!(
                         "{frame_count} frames (NumberOfFrames) in {} pixel data fragments",
                         fragments.len()
+                    ),
+                });
+            }
+            // No codec expands its bytes beyond its ratio: a larger image means a lying header
+            // (checked per frame again when decoding).
+            let encoded: u64 = fragments.iter().map(|f| (f.end - f.start) as u64).sum();
+            let ratio = super::pixels::max_ratio(file.syntax.codec) as u64;
+            let decoded = (frame_count as u64).saturating_mul(format.frame_bytes() as u64);
+            if file.syntax.codec != PixelCodec::Unsupported
+                && decoded
+                    > encoded
+                        .saturating_mul(ratio)
+                        .saturating_add((frame_count as u64).saturating_mul(64 << 10))
+            {
+                return Err(FormatError::DicomFile {
+                    path: file.path.clone(),
+                    reason: format!(
+                        "{frame_count} frame(s) of {}×{} samples of {} bits ({decoded} bytes) \
+                         cannot come from {encoded} encoded bytes in {}",
+                        format.cols,
+                        format.rows,
+                        format.bits_allocated,
+                        file.syntax.describe()
                     ),
                 });
             }

@@ -101,6 +101,9 @@ pub struct SkippedFile {
 pub struct DicomListing {
     pub series: Vec<SeriesSummary>,
     pub skipped: Vec<SkippedFile>,
+    /// The [`SeriesSummary::index`] that [`open`] opens without a pick: the only series, or a
+    /// one-file input's own; `None` when a pick is needed.
+    pub default_series: Option<usize>,
 }
 
 /// The read input: files, their series, the skipped files, and the file named (one-file
@@ -138,6 +141,16 @@ pub fn list(path: &Path) -> Result<DicomListing, FormatError> {
 /// Lists the series in `files` (`label` names the list in errors).
 pub fn list_files(files: &[PathBuf], label: &Path) -> Result<DicomListing, FormatError> {
     Ok(listing(&collect_files(files.to_vec(), label, None)?))
+}
+
+/// [`list`] for any input `formats::open` reads as DICOM (a folder, a DICOMDIR, a DICOM file,
+/// or a glob of DICOM files); `None` for other inputs.
+pub fn list_input(path: &Path) -> Option<Result<DicomListing, FormatError>> {
+    if !path.exists() && crate::series::is_pattern(path) {
+        let files = crate::series::expand_pattern(path).ok()?;
+        return is_dicom_input(&files[0]).then(|| list_files(&files, path));
+    }
+    is_dicom_input(path).then(|| list(path))
 }
 
 /// Opens the series picked by `pick` (`N` from [`list`], or a SeriesInstanceUID) in `path`,
@@ -208,6 +221,7 @@ fn listing(c: &Collection) -> DicomListing {
     DicomListing {
         series,
         skipped: c.skipped.clone(),
+        default_series: select(c, None).ok().map(|g| g + 1),
     }
 }
 

@@ -73,7 +73,7 @@ impl PixelFormat {
 
 /// The largest decoded/encoded size ratio a codec can reach, plus slack: decoding a frame
 /// larger than `ratio · compressed bytes + 64 KiB` means the header lies.
-fn max_ratio(codec: PixelCodec) -> usize {
+pub(crate) fn max_ratio(codec: PixelCodec) -> usize {
     match codec {
         // PackBits repeats a byte at most 128 times for 2 bytes.
         PixelCodec::Rle => 64,
@@ -82,8 +82,9 @@ fn max_ratio(codec: PixelCodec) -> usize {
         PixelCodec::Jpeg => 1024,
         // Deflate's limit is 1032:1.
         PixelCodec::DeflatedFrames => 1032,
-        // Empty code blocks make JPEG 2000 of a constant image tiny.
-        PixelCodec::Jpeg2000 => 1 << 16,
+        // Empty code blocks make JPEG 2000 of a constant image tiny (a constant 512×512
+        // 16-bit frame takes a few hundred bytes); the decoder needs 4 bytes per sample.
+        PixelCodec::Jpeg2000 => 2048,
         PixelCodec::Native { .. } | PixelCodec::EncapsulatedNative | PixelCodec::Unsupported => 1,
     }
 }
@@ -212,7 +213,7 @@ pub(crate) fn for_each_frame(
             ),
         }),
         (PixelValue::Native(range), PixelCodec::Native { big_endian }) => {
-            let needed = frames as u64 * frame_bytes as u64;
+            let needed = (frames as u64).saturating_mul(frame_bytes as u64);
             let have = (range.end - range.start) as u64;
             if have < needed {
                 return Err(FormatError::TooShort {
