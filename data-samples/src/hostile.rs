@@ -3670,6 +3670,12 @@ fn isot_cases(c: &mut Corpus) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Explicit VRs with a 16-bit length (PS3.5 Table 7.1-2).
+const DCM_SHORT_VRS: [&str; 21] = [
+    "AE", "AS", "AT", "CS", "DA", "DS", "DT", "FL", "FD", "IS", "LO", "LT", "PN", "SH", "SL", "SS",
+    "ST", "TM", "UI", "UL", "US",
+];
+
 /// A DICOM element in explicit VR little endian (PS3.5 §7.1.2): 16-bit lengths for the VRs
 /// of Table 7.1-2, reserved bytes and 32-bit lengths for the others. Odd values are padded
 /// (UI and binary with NUL, text with a space), as §6.2 requires.
@@ -3686,11 +3692,7 @@ fn dcm_el(group: u16, element: u16, vr: &str, value: &[u8]) -> Vec<u8> {
     b.extend(group.to_le_bytes());
     b.extend(element.to_le_bytes());
     b.extend(vr.as_bytes());
-    const SHORT: [&str; 21] = [
-        "AE", "AS", "AT", "CS", "DA", "DS", "DT", "FL", "FD", "IS", "LO", "LT", "PN", "SH", "SL",
-        "SS", "ST", "TM", "UI", "UL", "US",
-    ];
-    if SHORT.contains(&vr) {
+    if DCM_SHORT_VRS.contains(&vr) {
         b.extend((v.len() as u16).to_le_bytes());
     } else {
         b.extend([0, 0]);
@@ -3789,7 +3791,7 @@ fn dcm_slice_attributes(z: f64, series: &str, extra: &[Vec<u8>]) -> Vec<Vec<u8>>
         };
         let t = tag(x);
         if let Some(i) = e.iter().position(|y| tag(y) == t) {
-            e[i] = x.clone();
+            e[i].clone_from(x);
         } else {
             let at = e.iter().position(|y| tag(y) > t).unwrap_or(e.len());
             e.insert(at, x.clone());
@@ -4324,7 +4326,7 @@ fn dcm_cases(c: &mut Corpus) -> std::io::Result<()> {
             vec![
                 (
                     String::from("s0.dcm"),
-                    Entry::File(dcm_slice(0, series, &[el.clone()])),
+                    Entry::File(dcm_slice(0, series, std::slice::from_ref(&el))),
                 ),
                 (
                     String::from("s1.dcm"),
