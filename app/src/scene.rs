@@ -6,7 +6,7 @@
 //!
 //! | kind | files | acceleration structure |
 //! |---|---|---|
-//! | [`AnyScene::Grid`] | NRRD/NHDR, NIfTI (`.nii`, `.nii.gz`, `.hdr`/`.img`, 4D), Analyze 7.5, MetaImage `.mha`/`.mhd`, VTK image data (`.vti`, legacy `.vtk` structured points and rectilinear grids), TIFF stacks (multi-page, or numbered 2D slices `slice_*.tif`), raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD and MetaImage — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
+//! | [`AnyScene::Grid`] | NRRD/NHDR, NIfTI (`.nii`, `.nii.gz`, `.hdr`/`.img`, 4D), Analyze 7.5, MetaImage `.mha`/`.mhd`, VTK image data (`.vti`, legacy `.vtk` structured points and rectilinear grids), TIFF stacks (multi-page, or numbered 2D slices `slice_*.tif`), DICOM (a folder, a `DICOMDIR`, a `.dcm` and its series), raw (+ layout or `NAME.json` sidecar), series patterns (`vol_%03d.nrrd`, `vol_*.nrrd`), 4D NRRD and MetaImage — via `formats::open` | implicit min/max kd-tree ([`AnyGridScene`], thesis 004 ch. 7) |
 //! | [`AnyScene::Tet`] | `.vtk` (unstructured grids: a `.vtk` is a mesh or a grid by its `DATASET` line), `.vtu`, `.msh`, `.node`/`.ele`, a `.pvd` collection or a mesh pattern (`step_%03d.vtu`, `step_*.vtu`) — via `formats::mesh` | implicit min/max BVH with 4D bounds ([`TetScene`], ch. 8) |
 //! | [`AnyScene::Ooc`] | `.isot` treelet files (`isoscope preprocess`) — via `formats::treelet::open_isot` | treelets + loader thread ([`AnyOocVolume`], §7.7–7.8) |
 //!
@@ -102,15 +102,24 @@ impl std::fmt::Display for SceneKind {
     }
 }
 
-/// What [`open_scene`] will open `path` as: meshes by extension (`.vtk`, `.vtu`, `.msh`,
-/// `.node`, `.ele`, `.pvd`, also in patterns; a `.vtk` whose `DATASET` is an image is a grid),
-/// `.isot` by extension or magic, else a grid (NRRD, NIfTI, Analyze, MetaImage, VTK image
-/// data, TIFF, raw, volume series).
+/// What [`open_scene`] will open `path` as: a folder, a `DICOMDIR` or a `.dcm` file is a grid
+/// (a DICOM series); meshes by extension (`.vtk`, `.vtu`, `.msh`, `.node`, `.ele`, `.pvd`,
+/// also in patterns; a `.vtk` whose `DATASET` is an image is a grid), `.isot` by extension or
+/// magic, else a grid (NRRD, NIfTI, Analyze, MetaImage, VTK image data, TIFF, raw, volume
+/// series).
 pub fn detect_kind(path: &Path) -> SceneKind {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if formats::mesh::is_mesh_path(path) {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase());
+    if path.is_dir()
+        || name.as_deref() == Some("dicomdir")
+        || matches!(ext.as_deref(), Some("dcm" | "dicom"))
+    {
+        SceneKind::Grid
+    } else if formats::mesh::is_mesh_path(path) {
         SceneKind::Tet
     } else if ext.as_deref() == Some("isot") || (path.is_file() && formats::treelet::is_isot(path))
     {

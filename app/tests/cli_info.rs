@@ -447,3 +447,60 @@ fn missing_and_unknown_files_are_errors_naming_the_file() {
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && e.contains("data.bin"), "{e}");
 }
+
+/// DICOM inputs (fixtures of `formats/tests/dicom.rs`, written by pydicom): a folder of two
+/// series is listed (text and JSON, exit 0), `--series` opens one for `info` and `render`,
+/// without it `render` refuses and says how to pick, and a CT slice reports LPS labels and
+/// its Hounsfield rescale.
+#[test]
+fn dicom_folders_list_their_series_and_series_picks_one() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../formats/tests/data/dicom");
+    let two = data.join("synthetic/two_series");
+    let listed = info_json(&two, &[]);
+    assert_eq!(listed["kind"], "dicom");
+    let series = listed["dicom_series"].as_array().unwrap();
+    assert_eq!(series.len(), 2);
+    assert_eq!(series[0]["modality"], "CT");
+    assert_eq!(series[1]["modality"], "MR");
+    assert_eq!(series[1]["dims"], serde_json::json!([5, 5, 3]));
+    assert_eq!(series[1]["index"], 2);
+    assert!(
+        listed["dicom_skipped"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["path"].as_str().unwrap().ends_with("report.dcm")),
+        "{listed}"
+    );
+    let text = common::ok(&["info", two.to_str().unwrap()]);
+    assert!(
+        text.contains("DICOM series: 2") && text.contains("MR T1") && text.contains("--series N"),
+        "{text}"
+    );
+
+    let mr = info_json(&two, &["--series", "2"]);
+    assert_eq!(mr["kind"], "grid");
+    assert_eq!(mr["dims"], serde_json::json!([5, 5, 3]));
+    assert_eq!(mr["world_frame"], "LPS");
+    assert_eq!(mr["dicom_opened"], 2);
+    assert_eq!(mr["dicom_series"].as_array().unwrap().len(), 2);
+
+    let e = common::fails(&[
+        "render",
+        two.to_str().unwrap(),
+        "-o",
+        "/nonexistent-dir/x.png",
+    ]);
+    assert!(e.contains("2 series in") && e.contains("--series N"), "{e}");
+    let e = common::fails(&["info", two.to_str().unwrap(), "--series", "7"]);
+    assert!(e.contains("--series 7"), "{e}");
+
+    let ct = info_json(&data.join("real/CT_small/CT_small.dcm"), &[]);
+    assert_eq!(ct["dims"], serde_json::json!([128, 128, 1]));
+    assert_eq!(ct["axis_labels"], serde_json::json!(["L", "P", "S"]));
+    assert_eq!(
+        ct["value_map"],
+        serde_json::json!({"slope": 1.0, "intercept": -1024.0})
+    );
+    assert_eq!(ct["dicom_opened"], 1);
+}

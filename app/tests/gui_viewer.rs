@@ -957,3 +957,45 @@ fn screenshots_never_replace_an_input_and_replace_files_only_when_asked() {
         vec![input.clone()]
     );
 }
+
+/// A folder of two DICOM series (`formats/tests/data/dicom/synthetic/two_series`: a CT and an
+/// MR, plus a report and a text file) opens the series picker; "Open" on the second row
+/// loads the MR series (5 × 5 × 3, as pydicom reports it).
+#[test]
+fn a_dicom_folder_of_two_series_offers_a_picker_and_opens_the_pick() {
+    let folder = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../formats/tests/data/dicom/synthetic/two_series");
+    let mut h = real_harness(vec![folder.clone()]);
+    let start = Instant::now();
+    while h.query_by_label("DICOM series").is_none() {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no series picker; notes {:?}",
+            h.state()
+                .notifications()
+                .iter()
+                .map(|n| n.text.clone())
+                .collect::<Vec<_>>()
+        );
+        h.step();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        h.state().data().is_none(),
+        "nothing is opened before the pick"
+    );
+    h.get_by_label("CT head");
+    h.get_by_label("MR T1");
+    let opens: Vec<_> = h.get_all_by_label("Open").collect();
+    assert_eq!(opens.len(), 2);
+    opens[1].click();
+    h.run_steps(2);
+    step_until(&mut h, "the MR series", |a| a.data().is_some());
+    let data = h.state().data().unwrap();
+    assert_eq!(data.dims, [5, 5, 3]);
+    assert_eq!(data.path.as_deref(), Some(folder.as_path()));
+    assert!(
+        h.query_by_label("DICOM series").is_none(),
+        "the picker closed"
+    );
+}

@@ -9,6 +9,7 @@ mkdir -p logs
 for t in "$@"; do
     case $t in
         isot) len=32768 ;;
+        dicom) len=16384 ;;
         camera_json | session_json) len=2048 ;;
         *) len=4096 ;;
     esac

@@ -506,3 +506,25 @@ pub fn camera_json(data: &[u8]) -> Outcome {
     assert!(camera.eye.is_finite() && camera.target.is_finite() && camera.up.is_finite());
     Ok(())
 }
+
+// ---------------------------------------------------------------- DICOM
+
+/// `dicom`: one DICOM file, alone in its folder, opened as `formats::open` opens a `.dcm`
+/// (its series from its folder: itself) and listed as `isoscope info` lists it: the element
+/// walk, dicom-rs's attribute parser, the attribute reader, every pixel decoder (native, RLE,
+/// deflate, JPEG, JPEG 2000) and the series geometry.
+pub fn dicom(data: &[u8]) -> Outcome {
+    let dir = scratch_dir("dicom");
+    let path = dir.join("in.dcm");
+    std::fs::write(&path, data).map_err(err)?;
+    let listing = formats::dicom::list(&path).map_err(err);
+    let opened = formats::dicom::open(&path, None).map_err(err)?;
+    let listing = listing?;
+    assert!(
+        listing.series.len() <= 1,
+        "one file, {} series",
+        listing.series.len()
+    );
+    check_volume(opened.first_volume());
+    Ok(())
+}

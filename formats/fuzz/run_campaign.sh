@@ -27,6 +27,7 @@ for t in "$@"; do
         vtu) cp $mesh/*.vtu $mesh/series/*.vtu "$w"/; len=4096 ;;
         gmsh) cp $mesh/*.msh "$w"/; len=4096 ;;
         isot) cp seeds/isot/* "$w"/; len=32768 ;;
+        dicom) cp seeds/dicom/* "$w"/; len=16384 ;;
         camera_json | session_json) cp seeds/$t/* "$w"/; len=2048 ;;
         *) cp seeds/$t/* "$w"/; len=4096 ;;
     esac

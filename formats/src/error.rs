@@ -151,6 +151,22 @@ pub enum FormatError {
         field: String,
         reason: String,
     },
+    /// A DICOM file whose structure is broken (a length beyond the file, a bad sequence) or
+    /// that cannot be a volume slice (a color image, 1-bit pixels).
+    #[error("{}: DICOM: {reason}", path.display())]
+    DicomFile { path: PathBuf, reason: String },
+    /// A DICOM attribute that is missing or wrong; `attribute` is its keyword and tag, e.g.
+    /// `ImagePositionPatient (0020,0032)`.
+    #[error("{}: DICOM {attribute}: {reason}", path.display())]
+    DicomAttribute {
+        path: PathBuf,
+        attribute: String,
+        reason: String,
+    },
+    /// A DICOM series that cannot be one volume (duplicate positions, missing slices, mixed
+    /// sizes) or a series choice that does not match; `path` is the file, folder or DICOMDIR.
+    #[error("{}: {reason}", path.display())]
+    DicomSeries { path: PathBuf, reason: String },
 }
 
 impl FormatError {
@@ -176,6 +192,9 @@ impl FormatError {
             | FormatError::UnknownFormat { path, .. }
             | FormatError::Array { path, .. }
             | FormatError::Page { path, .. }
+            | FormatError::DicomFile { path, .. }
+            | FormatError::DicomAttribute { path, .. }
+            | FormatError::DicomSeries { path, .. }
             | FormatError::OutputIsInput { path, .. }
             | FormatError::OutputExists { path }
             | FormatError::BadOutput { path, .. }
@@ -191,7 +210,10 @@ impl FormatError {
             | FormatError::BadValue { field, .. }
             | FormatError::Contradiction { field, .. }
             | FormatError::Unsupported { field, .. }
-            | FormatError::BadField { field, .. } => Some(field),
+            | FormatError::BadField { field, .. }
+            | FormatError::DicomAttribute {
+                attribute: field, ..
+            } => Some(field),
             FormatError::MissingField { field, .. } => Some(field),
             _ => None,
         }

@@ -21,6 +21,8 @@
 //!   lazily through [`volume_core::series::StepLoader`] (4D NRRD: [`nrrd::NrrdSteps`]).
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
 //!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
+//! - [`dicom`]: DICOM series (a folder, a `DICOMDIR`, one file's series, a list of files) as
+//!   volumes in LPS, through dicom-rs, with `--series` picking one of several.
 //! - [`open`]: picks the reader from the name and contents.
 //! - [`input`]: every reader opens its files through [`input::open_regular`] (regular files
 //!   only: a FIFO, device or directory is refused before it is opened), and records it in
@@ -31,6 +33,7 @@
 //! The NRRD header parser has a `cargo fuzz` target in `formats/fuzz` (see `formats/README.md`);
 //! its seed corpus replays in the tests.
 
+pub mod dicom;
 pub mod error;
 pub mod input;
 pub mod mesh;
@@ -89,7 +92,8 @@ impl Dataset {
     }
 }
 
-/// Options for files that do not describe themselves (raw) — mirrors the CLI flags.
+/// Options for files that do not describe themselves (raw) and for inputs that hold several
+/// datasets (DICOM folders) — mirrors the CLI flags.
 #[derive(Default, Clone, Debug)]
 pub struct OpenOptions {
     pub raw: Option<raw::RawLayout>,
@@ -99,16 +103,31 @@ pub struct OpenOptions {
     /// The point array to read from files with several (VTK image data; `--field`); `None`:
     /// the active scalars, else the first. Refused for files without named arrays.
     pub field: Option<String>,
+    /// DICOM: the series to open when the input holds several: its number in
+    /// [`dicom::list`] (`"2"`) or its SeriesInstanceUID (the CLI's `--series`). Refused for
+    /// other files.
+    pub dicom_series: Option<String>,
 }
 
 /// Opens any supported rectilinear file by extension and content: `.nrrd`, `.nhdr`, NIfTI
 /// (`.nii`, `.nii.gz`, `.hdr`/`.img`), `.mha`, `.mhd`, `.vti`, legacy `.vtk` images,
-/// `.tif`/`.tiff`, raw files with `options.raw` or a `NAME.json` sidecar, and numbered series
+/// `.tif`/`.tiff`, raw files with `options.raw` or a `NAME.json` sidecar, numbered series
 /// (`vol_%03d.nrrd`, or a glob such as `vol_*.nrrd`, when no file of that literal name
-/// exists). Numbered single-page TIFF files are the slices of one volume, not a series.
+/// exists), and DICOM (a folder, a `DICOMDIR`, a file and its series, or a glob of DICOM
+/// files: [`dicom`]). Numbered single-page TIFF files are the slices of one volume, not a
+/// series.
 pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> {
+    let pick = options.dicom_series.as_deref();
+    if path.is_dir() {
+        refuse_unused(path, &dicom_options(options), false)?;
+        return dicom::open(path, pick);
+    }
     if !path.exists() && series::is_pattern(path) {
         let files = series::expand_pattern(path)?;
+        if dicom::is_dicom_input(&files[0]) {
+            refuse_unused(&files[0], &dicom_options(options), false)?;
+            return dicom::open_files(&files, path, pick);
+        }
         if tiff::is_slice_stack(&files)? {
             refuse_unused(
                 &files[0],
@@ -128,9 +147,27 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> 
     open_file(path, options)
 }
 
+/// `options` less the series choice, which DICOM inputs use.
+fn dicom_options(options: &OpenOptions) -> OpenOptions {
+    OpenOptions {
+        dicom_series: None,
+        ..options.clone()
+    }
+}
+
 /// Refuses the options a self-describing format has no use for (a flag that would otherwise
 /// be ignored silently).
 fn refuse_unused(path: &Path, options: &OpenOptions, field: bool) -> Result<(), FormatError> {
+    if let Some(series) = &options.dicom_series {
+        return Err(FormatError::Unsupported {
+            path: path.to_path_buf(),
+            field: "--series".into(),
+            reason: format!(
+                "\"{series}\": only DICOM inputs (a folder, a DICOMDIR, .dcm files) hold \
+                 several series to pick from"
+            ),
+        });
+    }
     if !field && let Some(f) = &options.field {
         return Err(FormatError::Unsupported {
             path: path.to_path_buf(),
@@ -209,6 +246,10 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
             false,
         )?;
         return raw::read_raw(path, layout).map(Dataset::Volume);
+    }
+    if dicom::is_dicom_input(path) {
+        refuse_unused(path, &dicom_options(options), false)?;
+        return dicom::open(path, options.dicom_series.as_deref());
     }
     if nifti::is_nifti_path(path) {
         refuse_unused(path, options, false)?;

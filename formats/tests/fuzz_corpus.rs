@@ -20,7 +20,7 @@ fn run(bytes: &[u8]) -> Result<(), String> {
 type Target = fn(&[u8]) -> harness::Outcome;
 
 /// Every fuzz target: its name (the corpus directory) and what it runs.
-const TARGETS: [(&str, Target); 14] = [
+const TARGETS: [(&str, Target); 15] = [
     ("nrrd_header", harness::nrrd_header),
     ("nrrd_data", harness::nrrd_data),
     ("raw_sidecar", harness::raw_sidecar),
@@ -35,6 +35,7 @@ const TARGETS: [(&str, Target); 14] = [
     ("metaimage", harness::metaimage),
     ("vti", harness::vti),
     ("tiff", harness::tiff),
+    ("dicom", harness::dicom),
 ];
 
 fn fuzz_dir() -> PathBuf {

@@ -28,8 +28,9 @@ pub const HISTOGRAM_BINS: usize = 64;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Volume file: .nrrd/.nhdr, .nii/.nii.gz, .hdr/.img (NIfTI pair, Analyze), .mha/.mhd,
-    /// .vti, a legacy .vtk image, .tif/.tiff (or numbered 2D slices such as 'slice_*.tif'), a
-    /// raw file (with the raw flags or a NAME.json sidecar), a time series pattern such as
+    /// .vti, a legacy .vtk image, .tif/.tiff (or numbered 2D slices such as 'slice_*.tif'),
+    /// DICOM (a folder, a DICOMDIR, a .dcm file and its series: lists the series), a raw file
+    /// (with the raw flags or a NAME.json sidecar), a time series pattern such as
     /// vol_%03d.nrrd or 'vol_*.nrrd'; a tetrahedral mesh (.vtk, .vtu, .msh, .node/.ele, .pvd,
     /// or a pattern such as step_%03d.vtu); or an .isot file.
     pub file: PathBuf,
@@ -99,6 +100,24 @@ pub struct InfoReport {
     pub arrays: Vec<String>,
     /// VTK image data: the array reported (and drawn by default); `null` for other files.
     pub array: Option<String>,
+    /// DICOM inputs: every series in the input (`null` for other files).
+    pub dicom_series: Option<Vec<formats::dicom::SeriesSummary>>,
+    /// DICOM inputs: the `index` of the series opened (`null` for other files).
+    pub dicom_opened: Option<usize>,
+    /// DICOM inputs: files that are not part of any series, and why.
+    pub dicom_skipped: Option<Vec<formats::dicom::SkippedFile>>,
+}
+
+/// What `info` reports for a DICOM input of several series when none is picked
+/// (`"kind": "dicom"`): the list to pick from with `--series`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DicomListReport {
+    /// The path as given.
+    pub file: String,
+    /// `"dicom"`.
+    pub kind: String,
+    pub dicom_series: Vec<formats::dicom::SeriesSummary>,
+    pub dicom_skipped: Vec<formats::dicom::SkippedFile>,
 }
 
 /// The source of the steps: one volume or a lazily loaded series.
@@ -248,7 +267,62 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
         memory_mapped: first.data.is_shared(),
         arrays,
         array,
+        dicom_series: None,
+        dicom_opened: None,
+        dicom_skipped: None,
     })
+}
+
+/// The text list of DICOM series (and skipped files).
+pub fn render_dicom_text(
+    series: &[formats::dicom::SeriesSummary],
+    skipped: &[formats::dicom::SkippedFile],
+    opened: Option<usize>,
+) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(out, "DICOM series: {}", series.len());
+    for s in series {
+        let mark = if Some(s.index) == opened { "*" } else { " " };
+        let _ = writeln!(
+            out,
+            "{mark}{:>3}  {:<3} {:>4} x {:>4} x {:>4}{}  {:>3} file{}  {:<4} {}{}{}",
+            s.index,
+            s.modality,
+            s.dims[0],
+            s.dims[1],
+            s.dims[2],
+            if s.phases > 1 {
+                format!(" x {} phases", s.phases)
+            } else {
+                String::new()
+            },
+            s.files,
+            if s.files == 1 { " " } else { "s" },
+            s.voxel_type,
+            if s.description.is_empty() {
+                "(no description)"
+            } else {
+                &s.description
+            },
+            s.number.map(|n| format!("  #{n}")).unwrap_or_default(),
+            s.part.map(|p| format!("  (part {p})")).unwrap_or_default(),
+        );
+        let _ = writeln!(out, "       uid {}  {}", s.uid, s.transfer_syntax);
+        if let Some(p) = &s.problem {
+            let _ = writeln!(out, "       cannot open: {p}");
+        }
+    }
+    if !skipped.is_empty() {
+        let _ = writeln!(out, "skipped files: {}", skipped.len());
+        for f in skipped.iter().take(20) {
+            let _ = writeln!(out, "  {}: {}", f.path.display(), f.reason);
+        }
+        if skipped.len() > 20 {
+            let _ = writeln!(out, "  ... and {} more", skipped.len() - 20);
+        }
+    }
+    out
 }
 
 fn fmt3(v: [f64; 3]) -> String {
@@ -474,7 +548,7 @@ pub struct IsotInfoReport {
     pub file_bytes: u64,
 }
 
-/// Any of the three reports (serialized without a wrapper: see each `kind`).
+/// Any of the reports (serialized without a wrapper: see each `kind`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
 #[allow(clippy::large_enum_variant)] // one value per run
@@ -482,6 +556,8 @@ pub enum AnyInfo {
     Grid(InfoReport),
     Tet(MeshInfoReport),
     Isot(IsotInfoReport),
+    /// A DICOM input of several series, none picked.
+    Dicom(DicomListReport),
 }
 
 /// Reads `path` as a mesh (a single file, a `.pvd` or a pattern) and gathers the report.
@@ -725,7 +801,34 @@ pub fn gather_any(path: &Path, open: &OpenArgs) -> anyhow::Result<AnyInfo> {
         );
     }
     Ok(match kind {
-        SceneKind::Grid => AnyInfo::Grid(gather(path, &open.open_options()?)?),
+        SceneKind::Grid => {
+            let options = open.open_options()?;
+            let Some(listing) = formats::dicom::list_input(path) else {
+                return Ok(AnyInfo::Grid(gather(path, &options)?));
+            };
+            let listing = listing?;
+            let opened = match options.dicom_series.as_deref().map(str::trim) {
+                None => listing.default_series,
+                Some(pick) => listing
+                    .series
+                    .iter()
+                    .find(|s| s.index.to_string() == pick || s.uid == pick)
+                    .map(|s| s.index),
+            };
+            if options.dicom_series.is_none() && opened.is_none() && listing.series.len() > 1 {
+                return Ok(AnyInfo::Dicom(DicomListReport {
+                    file: path.display().to_string(),
+                    kind: "dicom".into(),
+                    dicom_series: listing.series,
+                    dicom_skipped: listing.skipped,
+                }));
+            }
+            let mut report = gather(path, &options)?;
+            report.dicom_series = Some(listing.series);
+            report.dicom_opened = opened;
+            report.dicom_skipped = Some(listing.skipped);
+            AnyInfo::Grid(report)
+        }
         SceneKind::Tet => AnyInfo::Tet(gather_mesh(path)?),
         SceneKind::Ooc => AnyInfo::Isot(gather_isot(path)?),
     })
@@ -739,9 +842,26 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         print!(
             "{}",
             match &report {
-                AnyInfo::Grid(r) => render_text(r),
+                AnyInfo::Grid(r) => {
+                    let mut text = render_text(r);
+                    if let Some(series) = &r.dicom_series {
+                        text.push_str(&render_dicom_text(
+                            series,
+                            r.dicom_skipped.as_deref().unwrap_or_default(),
+                            r.dicom_opened,
+                        ));
+                    }
+                    text
+                }
                 AnyInfo::Tet(r) => render_mesh_text(r),
                 AnyInfo::Isot(r) => render_isot_text(r),
+                AnyInfo::Dicom(r) => format!(
+                    "file:         {}\n{}pass --series N (or a SeriesInstanceUID) to open one: \
+                     isoscope info {} --series 1\n",
+                    r.file,
+                    render_dicom_text(&r.dicom_series, &r.dicom_skipped, None),
+                    r.file
+                ),
             }
         );
     }
@@ -780,6 +900,9 @@ mod tests {
             memory_mapped: false,
             arrays: vec!["temperature".into(), "label".into()],
             array: Some("temperature".into()),
+            dicom_series: None,
+            dicom_opened: None,
+            dicom_skipped: None,
         }
     }
 

@@ -11,6 +11,9 @@
 //! `--field NAME` (here, for every subcommand that opens files) picks the point array of a
 //! file that has several: a tetrahedral mesh, or VTK image data.
 //!
+//! DICOM inputs (a folder, a `DICOMDIR`, a file and its series) that hold several series need
+//! `--series N|UID` (`isoscope info PATH` lists them).
+//!
 //! [`MeshArgs`] (tetrahedral meshes: `--bvh`, `--leaf-size`, `--packet`, `--normals`) and
 //! [`OocArgs`] (`.isot` files: `--level-timeout`, `--budget-mb`) are shared by `render` and
 //! `bench`; [`scene_options`] turns them into [`crate::scene::SceneOptions`] and rejects flags
@@ -28,9 +31,13 @@ use volume_core::tet::{BvhBuilder, BvhOptions, TetNormals};
 
 use crate::scene::{SceneKind, SceneOptions, detect_kind};
 
-/// Raw-layout flags (ignored for self-describing files).
+/// Raw-layout flags (ignored for self-describing files) and the DICOM series choice.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct OpenArgs {
+    /// DICOM: the series to open when the input holds several: its number N in `isoscope
+    /// info PATH`, or its SeriesInstanceUID.
+    #[arg(long, value_name = "N|UID", help_heading = "DICOM")]
+    pub series: Option<String>,
     /// Raw files: samples per axis, x fastest (e.g. 256x256x108).
     #[arg(long, value_name = "XxYxZ", value_parser = formats::raw::parse_dims, help_heading = "Raw files")]
     pub dims: Option<[usize; 3]>,
@@ -79,10 +86,12 @@ impl OpenArgs {
 
     /// The `formats` options these flags describe.
     pub fn open_options(&self) -> anyhow::Result<formats::OpenOptions> {
+        let dicom_series = self.series.clone();
         if !self.any_layout() {
             return Ok(formats::OpenOptions {
                 spacing: self.spacing,
                 field: self.field.clone(),
+                dicom_series,
                 ..formats::OpenOptions::default()
             });
         }
@@ -108,6 +117,7 @@ impl OpenArgs {
             }),
             spacing: None,
             field: self.field.clone(),
+            dicom_series,
         })
     }
 }
@@ -239,6 +249,12 @@ pub fn scene_options(
             file.display()
         );
     }
+    if kind != SceneKind::Grid && open.series.is_some() {
+        bail!(
+            "--series picks a DICOM series; {} is {what}",
+            file.display()
+        );
+    }
     Ok(SceneOptions {
         open: open.open_options()?,
         step: step.unwrap_or(0),
@@ -315,8 +331,31 @@ mod tests {
     }
 
     #[test]
+    fn series_reaches_the_options_and_only_applies_to_volumes() {
+        let a = OpenArgs {
+            series: Some("2".into()),
+            ..OpenArgs::default()
+        };
+        assert_eq!(a.open_options().unwrap().dicom_series.as_deref(), Some("2"));
+        let e = scene_options(
+            Path::new("m.vtu"),
+            &a,
+            &MeshArgs::default(),
+            &OocArgs::default(),
+            None,
+            Intersector::Exact,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("--series picks a DICOM series"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn full_flags_make_a_layout() {
         let a = OpenArgs {
+            series: None,
             dims: Some([4, 5, 6]),
             voxel_type: Some(VoxelType::I16),
             endian: Some(Endian::Big),

@@ -148,6 +148,7 @@ impl ViewerApp {
             intersector: self.state.render.intersector,
             smooth_normals: self.state.render.smooth_normals,
             field: self.state.field.clone(),
+            dicom_series: None,
         }
     }
 }

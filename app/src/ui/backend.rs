@@ -203,7 +203,12 @@ pub struct OpenChoices {
     pub smooth_normals: bool,
     /// Tet meshes: the point array to draw if the mesh has it (a restored session's).
     pub field: Option<String>,
+    /// DICOM inputs of several series: the one picked (its number or SeriesInstanceUID).
+    pub dicom_series: Option<String>,
 }
+
+/// One series of a DICOM input, as the series picker lists it.
+pub use formats::dicom::SeriesSummary;
 
 /// Opening data and building scenes; implemented by [`CoreBackend`] and by test doubles.
 pub trait Backend: Send + Sync + 'static {
@@ -223,6 +228,19 @@ pub trait Backend: Send + Sync + 'static {
         choices: OpenChoices,
         control: &JobControl,
     ) -> Result<LoadedData, String>;
+
+    /// True if `path` may hold several datasets to pick from (a DICOM folder, `DICOMDIR` or
+    /// file): the viewer then asks [`Self::series_to_pick`] (in a job) before it opens it.
+    /// Cheap: it runs on the UI thread and reads no file.
+    fn may_hold_several_series(&self, _path: &Path) -> bool {
+        false
+    }
+
+    /// The series of `path` when the user has to pick one (several, and none implied);
+    /// `Ok(None)` when `path` opens without a pick. Call from a job: it reads every file.
+    fn series_to_pick(&self, _path: &Path) -> Result<Option<Vec<SeriesSummary>>, String> {
+        Ok(None)
+    }
 }
 
 pub use super::core_backend::{CoreBackend, DEFAULT_SAMPLE_SIZE};

@@ -15,6 +15,9 @@ impl ViewerApp {
                 if ui.button("Open…").clicked() {
                     self.commands.push(Command::PickFiles);
                 }
+                if ui.button("Open folder (DICOM)…").clicked() {
+                    self.commands.push(Command::PickFolder);
+                }
                 if ui.button("Open default sample").clicked() {
                     self.commands.push(Command::OpenDefault);
                 }

@@ -6,6 +6,7 @@
 //! [`ViewerState`] directly instead; the next render request follows from it.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 use super::app::ViewerApp;
@@ -13,7 +14,7 @@ use super::backend::LoadedData;
 use super::files::{FileGroup, group_files, is_session_file, needs_raw_dialog};
 use super::jobs::Job;
 use super::panels;
-use super::runtime::RawDialog;
+use super::runtime::{RawDialog, SeriesDialog};
 use super::state::{CameraState, RawLayoutState, ViewerState};
 
 /// Actions with side effects, applied by the viewer at the start of a frame.
@@ -28,11 +29,26 @@ pub enum Command {
         files: Option<Vec<PathBuf>>,
     },
     OpenDefault,
+    /// Opens series `series` (a number or SeriesInstanceUID; `None`: the only one) of a DICOM
+    /// input; `files` replace the session's list when the open succeeds.
+    OpenSeries {
+        path: PathBuf,
+        series: Option<String>,
+        files: Option<Vec<PathBuf>>,
+    },
+    /// Shows the series picker for a DICOM input of several series.
+    PickSeries {
+        path: PathBuf,
+        series: Vec<super::backend::SeriesSummary>,
+        files: Option<Vec<PathBuf>>,
+    },
     /// Shows file `index` of `state.files`.
     ShowFile(usize),
     /// Tet meshes: draws another point array (a value refit, no rebuild).
     SetField(String),
     PickFiles,
+    /// The folder dialog (a DICOM series folder).
+    PickFolder,
     AddSurface,
     RemoveSurface(usize),
     AddClipBox,
@@ -83,11 +99,33 @@ impl ViewerApp {
                     self.open_path(p, None);
                 }
             }
+            Command::OpenSeries {
+                path,
+                series,
+                files,
+            } => self.start_load_series(Some(path), None, series, files),
+            Command::PickSeries {
+                path,
+                series,
+                files,
+            } => {
+                self.rt.series_dialog = Some(SeriesDialog {
+                    path,
+                    series,
+                    files,
+                });
+            }
             Command::PickFiles => self.start_dialog(|| {
                 rfd::FileDialog::new()
                     .set_title("Open volume data")
                     .pick_files()
                     .map(Command::OpenFiles)
+            }),
+            Command::PickFolder => self.start_dialog(|| {
+                rfd::FileDialog::new()
+                    .set_title("Open a folder (DICOM series)")
+                    .pick_folder()
+                    .map(|dir| Command::OpenFiles(vec![dir]))
             }),
             Command::AddSurface => {
                 if let Some(d) = &self.rt.data {
@@ -156,7 +194,17 @@ impl ViewerApp {
 
     /// Runs a native file dialog on its own thread; its answer is queued as a command.
     fn start_dialog(&mut self, dialog: impl FnOnce() -> Option<Command> + Send + 'static) {
-        let job = Job::spawn("file dialog", self.repaint_fn(), |_| dialog());
+        self.start_asking("file dialog", dialog);
+    }
+
+    /// Runs `ask` (a dialog, or a listing that decides what to show next) on its own
+    /// thread; its answer is queued as a command.
+    fn start_asking(
+        &mut self,
+        label: &str,
+        ask: impl FnOnce() -> Option<Command> + Send + 'static,
+    ) {
+        let job = Job::spawn(label.to_string(), self.repaint_fn(), |_| ask());
         self.jobs.dialog.start((), job);
     }
 
@@ -166,7 +214,12 @@ impl ViewerApp {
         let raw = session.raw_layout.clone();
         self.state = session;
         self.rt.active_file = 0;
-        self.start_load(files.first().cloned(), raw, None);
+        match files.first() {
+            Some(first) if self.backend.may_hold_several_series(first) => {
+                self.open_path(first.clone(), None);
+            }
+            first => self.start_load(first.cloned(), raw, None),
+        }
     }
 
     /// Several files of one kind and shape open as a time series (see [`group_files`]).
@@ -220,9 +273,29 @@ impl ViewerApp {
     }
 
     /// Raw files without a JSON sidecar get the layout dialog first (which opens them with
-    /// [`Command::OpenRaw`]); `files` replace the session's list when the open succeeds.
+    /// [`Command::OpenRaw`]); a DICOM input of several series gets the series picker (a job
+    /// lists them first, then [`Command::PickSeries`] or [`Command::OpenSeries`]); `files`
+    /// replace the session's list when the open succeeds.
     fn open_path(&mut self, path: PathBuf, files: Option<Vec<PathBuf>>) {
-        if needs_raw_dialog(&path) {
+        if self.backend.may_hold_several_series(&path) {
+            let backend = Arc::clone(&self.backend);
+            let label = format!("listing the series of {}", path.display());
+            self.start_asking(&label, move || {
+                Some(match backend.series_to_pick(&path) {
+                    Ok(Some(series)) => Command::PickSeries {
+                        path,
+                        series,
+                        files,
+                    },
+                    // One series, or a listing error: the open reports what is wrong.
+                    Ok(None) | Err(_) => Command::OpenSeries {
+                        path,
+                        series: None,
+                        files,
+                    },
+                })
+            });
+        } else if needs_raw_dialog(&path) {
             let layout = self.state.raw_layout.clone().unwrap_or_default();
             self.rt.raw_dialog = Some(RawDialog {
                 path,

@@ -23,7 +23,7 @@ use volume_core::{RectilinearVolume, VoxelType};
 
 use super::backend::{
     Backend, DataKindLabel, HISTOGRAM_BINS, LoadedData, LodStatus, OpenChoices, PreparedScene,
-    RenderRequest, RenderedImage, StepSwitch, ValueInfo,
+    RenderRequest, RenderedImage, SeriesSummary, StepSwitch, ValueInfo,
 };
 use super::camera::{bounding_radius, clip_box_world};
 use super::jobs::JobControl;
@@ -314,6 +314,7 @@ fn scene_options(
     Ok(SceneOptions {
         open: formats::OpenOptions {
             raw: raw.map(raw_layout).transpose()?,
+            dicom_series: choices.dicom_series.clone(),
             ..formats::OpenOptions::default()
         },
         intersector: intersector(choices.intersector),
@@ -372,6 +373,29 @@ impl Backend for CoreBackend {
     ) -> Result<LoadedData, String> {
         let (name, scene) = default_scene(&choices, control)?;
         loaded_data(name, None, scene)
+    }
+
+    fn may_hold_several_series(&self, path: &Path) -> bool {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        path.is_dir()
+            || name == "dicomdir"
+            || Path::new(&name)
+                .extension()
+                .is_some_and(|e| e == "dcm" || e == "dicom")
+    }
+
+    fn series_to_pick(&self, path: &Path) -> Result<Option<Vec<SeriesSummary>>, String> {
+        match formats::dicom::list_input(path) {
+            None => Ok(None),
+            Some(Err(e)) => Err(e.to_string()),
+            Some(Ok(listing)) => Ok(
+                (listing.default_series.is_none() && listing.series.len() > 1)
+                    .then_some(listing.series),
+            ),
+        }
     }
 }
 

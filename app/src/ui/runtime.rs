@@ -55,6 +55,15 @@ pub struct RawDialog {
     pub files: Option<Vec<PathBuf>>,
 }
 
+/// The DICOM series picker while it is open: a folder (or DICOMDIR, or file) of several
+/// series.
+pub struct SeriesDialog {
+    pub path: PathBuf,
+    pub series: Vec<super::backend::SeriesSummary>,
+    /// What the session's file list becomes when the open succeeds.
+    pub files: Option<Vec<PathBuf>>,
+}
+
 /// The viewer's non-persisted state (module docs).
 pub struct Runtime {
     pub data: Option<LoadedData>,
@@ -75,6 +84,7 @@ pub struct Runtime {
     /// When recent frames arrived (the status bar's frames/s).
     pub shown_times: VecDeque<Instant>,
     pub raw_dialog: Option<RawDialog>,
+    pub series_dialog: Option<SeriesDialog>,
     pub screenshot_window: bool,
     pub notifications: Vec<Notification>,
     pub last_interaction: Option<Instant>,
@@ -97,6 +107,7 @@ impl Default for Runtime {
             shown: None,
             shown_times: VecDeque::new(),
             raw_dialog: None,
+            series_dialog: None,
             screenshot_window: false,
             notifications: Vec::new(),
             last_interaction: None,

@@ -235,12 +235,24 @@ impl ViewerApp {
         raw: Option<RawLayoutState>,
         files: Option<Vec<PathBuf>>,
     ) {
+        self.start_load_series(path, raw, None, files);
+    }
+
+    /// [`Self::start_load`] of DICOM series `series` (a number or SeriesInstanceUID) of `path`.
+    pub(super) fn start_load_series(
+        &mut self,
+        path: Option<PathBuf>,
+        raw: Option<RawLayoutState>,
+        series: Option<String>,
+        files: Option<Vec<PathBuf>>,
+    ) {
         let backend = Arc::clone(&self.backend);
         let label = path.as_ref().map_or_else(
             || "generating the default sample".to_string(),
             |p| format!("loading {}", p.display()),
         );
-        let choices = self.open_choices();
+        let mut choices = self.open_choices();
+        choices.dicom_series = series;
         let job = Job::spawn(label, self.repaint_fn(), move |control| match path {
             Some(p) => backend.open(&p, raw.as_ref(), choices, control),
             None => backend.default_dataset(choices, control),

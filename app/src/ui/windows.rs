@@ -1,5 +1,5 @@
-//! Windows over the viewport: the raw-file layout dialog, the screenshot dialog and the
-//! notifications (errors stay until dismissed). They read the state and push
+//! Windows over the viewport: the raw-file layout dialog, the DICOM series picker, the
+//! screenshot dialog and the notifications (errors stay until dismissed). They read the state and push
 //! [`Command`]s; so do files dropped on the window.
 
 use std::path::PathBuf;
@@ -34,6 +34,7 @@ impl ViewerApp {
                 self.rt.raw_dialog = None;
             }
         }
+        self.series_picker_ui(ctx);
         if self.rt.screenshot_window {
             let mut open = true;
             let mut take = false;
@@ -107,6 +108,81 @@ impl ViewerApp {
                 self.rt.notifications.remove(i);
             }
             ctx.request_repaint_after(Duration::from_secs(1));
+        }
+    }
+
+    /// The series picker: one row per series of the DICOM input (number, modality, size,
+    /// files, description); "Open" on a row opens it. Series that cannot be opened say why.
+    fn series_picker_ui(&mut self, ctx: &egui::Context) {
+        let Some(dialog) = &self.rt.series_dialog else {
+            return;
+        };
+        let mut open = true;
+        let mut picked = None;
+        egui::Window::new("DICOM series")
+            .open(&mut open)
+            .collapsible(false)
+            .show(ctx, |ui| {
+                ui.label(format!(
+                    "{} holds {} series; pick one:",
+                    dialog.path.display(),
+                    dialog.series.len()
+                ));
+                egui::ScrollArea::vertical()
+                    .max_height(360.0)
+                    .show(ui, |ui| {
+                        egui::Grid::new("isoscope-series-picker")
+                            .striped(true)
+                            .show(ui, |ui| {
+                                for s in &dialog.series {
+                                    let size = format!(
+                                        "{} × {} × {}{}",
+                                        s.dims[0],
+                                        s.dims[1],
+                                        s.dims[2],
+                                        if s.phases > 1 {
+                                            format!(" × {} phases", s.phases)
+                                        } else {
+                                            String::new()
+                                        }
+                                    );
+                                    ui.label(format!("{}", s.index));
+                                    ui.label(&s.modality);
+                                    ui.label(size);
+                                    ui.label(format!(
+                                        "{} file{}",
+                                        s.files,
+                                        if s.files == 1 { "" } else { "s" }
+                                    ));
+                                    ui.label(if s.description.is_empty() {
+                                        "(no description)"
+                                    } else {
+                                        &s.description
+                                    });
+                                    if ui.button("Open").on_hover_text(&s.uid).clicked() {
+                                        picked = Some(s.index);
+                                    }
+                                    if let Some(p) = &s.problem {
+                                        ui.colored_label(
+                                            Color32::from_rgb(255, 160, 90),
+                                            "cannot open",
+                                        )
+                                        .on_hover_text(p);
+                                    }
+                                    ui.end_row();
+                                }
+                            });
+                    });
+            });
+        if let Some(index) = picked {
+            let d = self.rt.series_dialog.take().expect("dialog is open");
+            self.commands.push(Command::OpenSeries {
+                path: d.path,
+                series: Some(index.to_string()),
+                files: d.files,
+            });
+        } else if !open {
+            self.rt.series_dialog = None;
         }
     }
 

@@ -185,6 +185,8 @@ def image_seeds(data_dir):
     seed("tiff", "ok_slice.tif", read("tiff", "slices", "slice_000.tif"))
     tif = read("tiff", "deflate_i32.tif")
     seed("tiff", "bad_cut.tif", tif[: len(tif) // 2])
+
+
 def nifti_seeds(nifti_dir):
     """The small files written by nibabel (formats/tests/data/nifti) behind the harness's
     selector byte: 0 a .nii, 1 compressed by the harness, 2 a .nii.gz as is, 3 a pair."""
@@ -209,7 +211,35 @@ def nifti_seeds(nifti_dir):
     put("nifti", "bad_not_gzip.nii.gz", b"\x02" + read("u16.nii")[:600])
 
 
+def dicom_seeds(dicom_dir):
+    """Single DICOM files from the reader's fixtures (formats/tests/data/dicom): valid ones of
+    every pixel codec, and broken ones. Run make_dicom.py there first."""
+    ok = {
+        "ok_mr_explicit.dcm": "real/MR_small/MR_small.dcm",
+        "ok_mr_implicit.dcm": "real/MR_small_implicit/MR_small_implicit.dcm",
+        "ok_mr_bigendian.dcm": "real/MR_small_bigendian/MR_small_bigendian.dcm",
+        "ok_mr_rle.dcm": "real/MR_small_RLE/MR_small_RLE.dcm",
+        "ok_mr_j2k.dcm": "real/MR_small_jp2klossless/MR_small_jp2klossless.dcm",
+        "ok_deflate.dcm": "real/image_dfl/image_dfl.dcm",
+        "ok_rtdose_frames.dcm": "real/rtdose/rtdose.dcm",
+        "ok_rtdose_rle.dcm": "real/rtdose_rle/rtdose_rle.dcm",
+        "ok_enhanced.dcm": "synthetic/multiframe/enhanced.dcm",
+        "ok_jpeg_lossless.dcm": "synthetic/jpeg_lossless/jpeg_lossless0.dcm",
+        "ok_jpeg_baseline.dcm": "synthetic/jpeg_baseline/baseline.dcm",
+        "ok_bits12.dcm": "synthetic/bits12/b0.dcm",
+        "bad_truncated.dcm": "bad/truncated/truncated.dcm",
+        "bad_short_pixels.dcm": "bad/short_pixels/short_pixels.dcm",
+        "bad_jpeg_ls.dcm": "bad/jpeg_ls/jpeg_ls.dcm",
+        "bad_report.dcm": "real/test-SR/test-SR.dcm",
+        "bad_mr_truncated.dcm": "real/MR_truncated/MR_truncated.dcm",
+    }
+    for name, src in ok.items():
+        with open(os.path.join(dicom_dir, src), "rb") as f:
+            put("dicom", name, f.read())
+
+
 if __name__ == "__main__":
+    dicom_seeds(os.path.join(HERE, "..", "..", "tests", "data", "dicom"))
     mesh_dir = os.path.join(HERE, "..", "..", "tests", "data", "mesh")
     nrrd_seeds()
     raw_seeds()
