@@ -311,6 +311,11 @@ pub trait SceneData {
     fn value_info(&self, bins: usize) -> Option<ValueInfo>;
     /// Grid dims in voxels (`[0; 3]` for meshes).
     fn dims(&self) -> [usize; 3];
+    /// The anatomical frame of world coordinates (RAS, LPS), for orientation labels and view
+    /// presets; unknown for meshes and files that do not say.
+    fn world_frame(&self) -> volume_core::WorldFrame {
+        volume_core::WorldFrame::Unknown
+    }
     /// Loads `step`'s data ahead of time (shared access, so frames keep rendering), so that
     /// a later [`Self::set_step`] only refits.
     fn prefetch(&self, step: usize) -> anyhow::Result<()>;
@@ -707,6 +712,10 @@ impl SceneData for GridData {
 
     fn dims(&self) -> [usize; 3] {
         self.volume.dims()
+    }
+
+    fn world_frame(&self) -> volume_core::WorldFrame {
+        self.volume.grid.world_frame()
     }
 
     fn prefetch(&self, step: usize) -> anyhow::Result<()> {
@@ -1315,6 +1324,10 @@ impl SceneData for OocData {
             .layout
             .dims()
             .map(|x| usize::try_from(x).unwrap_or(usize::MAX))
+    }
+
+    fn world_frame(&self) -> volume_core::WorldFrame {
+        self.volume.meta().grid.world_frame()
     }
 
     fn prefetch(&self, step: usize) -> anyhow::Result<()> {

@@ -180,6 +180,7 @@ impl Backend for TestBackend {
             summary: "grid 6x5x4 f32, 4 steps".into(),
             dims: [6, 5, 4],
             bounds: Aabb::new(Vec3::ZERO, Vec3::new(5.0, 4.0, 6.0)),
+            world_frame: volume_core::WorldFrame::Lps,
             value_range: (0.0, 8.0),
             histogram: None,
             histogram_note: String::new(),
@@ -998,4 +999,35 @@ fn a_dicom_folder_of_two_series_offers_a_picker_and_opens_the_pick() {
         h.query_by_label("DICOM series").is_none(),
         "the picker closed"
     );
+}
+
+#[test]
+fn view_presets_follow_the_anatomical_frame_and_reach_the_renderer() {
+    // The test series is LPS: the anterior side is world −y, the patient's right world −x.
+    let (mut h, _rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    settle(&mut h);
+    h.get_by_label("Camera").click();
+    h.run_steps(2);
+    for (label, want) in [
+        ("Anterior", -Vec3::Y),
+        ("Right", -Vec3::X),
+        ("Superior", Vec3::Z),
+    ] {
+        h.get_by_label(label).click();
+        h.run_steps(2);
+        settle(&mut h);
+        let shown = h.state().shown_frame().unwrap().request.clone();
+        let from_target = (shown.camera.eye - shown.camera.target).normalize();
+        assert!(
+            from_target.dot(want) > 0.9999,
+            "{label}: the camera looks from {from_target:?}"
+        );
+        assert_eq!(h.state().state.camera.pan, [0.0, 0.0]);
+    }
+    // The marker is on by default and can be switched off (it is saved with the session).
+    assert!(h.state().state.render.orientation_marker);
+    h.get_by_label("Orientation marker").click();
+    h.run_steps(2);
+    assert!(!h.state().state.render.orientation_marker);
 }

@@ -13,6 +13,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
+use volume_core::WorldFrame;
 use volume_core::math::Aabb;
 use volume_core::stats::Histogram;
 
@@ -164,6 +165,8 @@ pub struct LoadedData {
     /// Grid dims (`[0; 3]` for meshes).
     pub dims: [usize; 3],
     pub bounds: Aabb,
+    /// The anatomical frame of world coordinates (orientation marker, view presets).
+    pub world_frame: WorldFrame,
     /// Finite value range of the current step and field (the slider range).
     pub value_range: (f64, f64),
     /// Histogram of the current step and field (`.isot`: of the coarsest level).

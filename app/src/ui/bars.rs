@@ -47,6 +47,23 @@ impl ViewerApp {
                 if ui.button("Reset view").clicked() {
                     self.commands.push(Command::ResetView);
                 }
+                let frame = self
+                    .rt
+                    .data
+                    .as_ref()
+                    .map_or(volume_core::WorldFrame::Unknown, |d| d.world_frame);
+                for side in super::orientation::ViewSide::ALL {
+                    if ui
+                        .button(format!("View from {}", side.label(frame)))
+                        .clicked()
+                    {
+                        self.commands.push(Command::ViewFrom(side));
+                    }
+                }
+                ui.checkbox(
+                    &mut self.state.render.orientation_marker,
+                    "Orientation marker",
+                );
             });
         });
     }

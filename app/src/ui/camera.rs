@@ -48,7 +48,13 @@ impl CameraPose {
         let vfov = state.vfov_deg.clamp(5.0, 120.0);
         let (az, el) = (
             state.azimuth_deg.to_radians(),
-            state.elevation_deg.clamp(-89.0, 89.0).to_radians(),
+            state
+                .elevation_deg
+                .clamp(
+                    -CameraState::MAX_ELEVATION_DEG,
+                    CameraState::MAX_ELEVATION_DEG,
+                )
+                .to_radians(),
         );
         let offset_dir = Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin());
         // The bounding sphere fits the vertical field of view at zoom 1.

@@ -56,6 +56,8 @@ pub enum Command {
     AddClipPlane,
     RemoveClipPlane(usize),
     ResetView,
+    /// Looks at the data from one side (anatomical when the world frame is known).
+    ViewFrom(super::orientation::ViewSide),
     AddBookmark,
     SetStep(usize),
     SaveSession(PathBuf),
@@ -145,6 +147,14 @@ impl ViewerApp {
                 self.state.clip_planes.remove(i);
             }
             Command::ResetView => self.state.camera = CameraState::default(),
+            Command::ViewFrom(side) => {
+                let frame = self
+                    .rt
+                    .data
+                    .as_ref()
+                    .map_or(volume_core::WorldFrame::Unknown, |d| d.world_frame);
+                self.state.camera.view_from(side, frame);
+            }
             Command::AddBookmark => self.state.bookmarks.push(self.state.camera),
             Command::SetStep(s) => {
                 let count = self.rt.data.as_ref().map_or(1, LoadedData::step_count);

@@ -280,6 +280,7 @@ pub fn loaded_data(
         summary: data.describe(),
         dims: data.dims(),
         bounds: scene.world_bounds(),
+        world_frame: data.world_frame(),
         value_range: info.value_range,
         histogram: info.histogram,
         histogram_note: info.histogram_note,

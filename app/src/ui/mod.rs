@@ -15,6 +15,7 @@
 //!   tests drive the real UI with a recording double) and [`core_backend`] (the real one).
 //! - Helpers: [`files`] (numbered files become a time series; session and raw probes),
 //!   [`camera`] (orbit camera → world pose, projection of world points into the image),
+//!   [`orientation`] (anatomical view presets and the orientation marker),
 //!   [`frame_upload`] (the rendered frame into a texture without a per-pixel pass).
 
 pub mod app;
@@ -27,6 +28,7 @@ pub mod files;
 pub mod frame_upload;
 pub mod job_table;
 pub mod jobs;
+pub mod orientation;
 pub mod panels;
 pub mod runtime;
 pub mod scheduler;

@@ -399,8 +399,15 @@ pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState, kind: Option<Data
     color_button(ui, "Background", &mut o.background);
 }
 
-/// Camera: field of view, projection, reset, bookmarks.
-pub fn camera_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>) {
+/// Camera: view presets, field of view, projection, reset, bookmarks.
+pub fn camera_ui(
+    ui: &mut Ui,
+    state: &mut ViewerState,
+    frame: volume_core::WorldFrame,
+    commands: &mut Vec<Command>,
+) {
+    view_side_buttons(ui, frame, commands);
+    ui.checkbox(&mut state.render.orientation_marker, "Orientation marker");
     ui.add(Slider::new(&mut state.camera.vfov_deg, 10.0..=90.0).text("Field of view °"));
     ui.checkbox(&mut state.camera.orthographic, "Orthographic");
     ui.horizontal(|ui| {
@@ -436,6 +443,31 @@ pub fn camera_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Comman
         .small()
         .weak(),
     );
+}
+
+/// The six standard views: anatomical names when the world frame is known, else world axes.
+pub fn view_side_buttons(ui: &mut Ui, frame: volume_core::WorldFrame, commands: &mut Vec<Command>) {
+    use super::orientation::ViewSide;
+    ui.horizontal_wrapped(|ui| {
+        ui.label("View from");
+        for side in ViewSide::ALL {
+            let hover = if frame.is_known() {
+                format!(
+                    "Look from the {} side ({})",
+                    side.label(frame).to_lowercase(),
+                    frame.name()
+                )
+            } else {
+                format!(
+                    "Look from {} (the file gives no anatomical frame)",
+                    side.label(frame)
+                )
+            };
+            if ui.button(side.label(frame)).on_hover_text(hover).clicked() {
+                commands.push(Command::ViewFrom(side));
+            }
+        }
+    });
 }
 
 /// Time slider, step buttons, play/pause, loop, fps, and the current step and time value.
@@ -586,7 +618,12 @@ impl ViewerApp {
             egui::CollapsingHeader::new("Camera")
                 .default_open(false)
                 .show(ui, |ui| {
-                    camera_ui(ui, &mut self.state, &mut self.commands);
+                    let frame = self
+                        .rt
+                        .data
+                        .as_ref()
+                        .map_or(volume_core::WorldFrame::Unknown, |d| d.world_frame);
+                    camera_ui(ui, &mut self.state, frame, &mut self.commands);
                 });
         });
     }

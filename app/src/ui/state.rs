@@ -128,7 +128,7 @@ impl ViewerState {
 #[serde(default)]
 pub struct CameraState {
     pub azimuth_deg: f32,
-    /// Clamped to ±89° so that the up vector stays defined.
+    /// Clamped to ±[`Self::MAX_ELEVATION_DEG`] so that the up vector stays defined.
     pub elevation_deg: f32,
     /// Distance as a multiple of the distance at which the bounding sphere fits the view.
     pub zoom: f32,
@@ -154,11 +154,14 @@ impl Default for CameraState {
 impl CameraState {
     pub const MIN_ZOOM: f32 = 0.05;
     pub const MAX_ZOOM: f32 = 20.0;
+    /// The steepest elevation: the superior and inferior views look down and up at it.
+    pub const MAX_ELEVATION_DEG: f32 = 89.9;
 
     /// Orbits by a drag of `(dx, dy)` degrees.
     pub fn orbit(&mut self, d_azimuth_deg: f32, d_elevation_deg: f32) {
         self.azimuth_deg = (self.azimuth_deg + d_azimuth_deg).rem_euclid(360.0);
-        self.elevation_deg = (self.elevation_deg + d_elevation_deg).clamp(-89.0, 89.0);
+        self.elevation_deg = (self.elevation_deg + d_elevation_deg)
+            .clamp(-Self::MAX_ELEVATION_DEG, Self::MAX_ELEVATION_DEG);
     }
 
     /// Multiplies the distance by `factor` (< 1 moves closer).
@@ -320,6 +323,8 @@ pub struct RenderOptions {
     /// Tet meshes: normals interpolated from vertex gradients (thesis 004 §8.3) instead of
     /// the isopolygon's plane (the default: the data as computed).
     pub smooth_normals: bool,
+    /// The orientation marker in the viewport's corner.
+    pub orientation_marker: bool,
 }
 
 impl Default for RenderOptions {
@@ -332,6 +337,7 @@ impl Default for RenderOptions {
             light_elevation_deg: 0.0,
             background: [0.08, 0.08, 0.10],
             smooth_normals: false,
+            orientation_marker: true,
         }
     }
 }
@@ -441,7 +447,7 @@ mod tests {
         let mut c = CameraState::default();
         c.orbit(400.0, 200.0);
         assert!((c.azimuth_deg - 75.0).abs() < 1e-4);
-        assert_eq!(c.elevation_deg, 89.0);
+        assert_eq!(c.elevation_deg, CameraState::MAX_ELEVATION_DEG);
         c.zoom_by(1e-9);
         assert_eq!(c.zoom, CameraState::MIN_ZOOM);
         c.zoom_by(f32::NAN);

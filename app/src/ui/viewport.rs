@@ -1,6 +1,6 @@
 //! The viewport: the frame on screen (or what is being prepared), orbit/pan/zoom by mouse
 //! and keys (which edit the camera state directly and mark the view as moving, so frames
-//! are coarse until it settles), and the enabled clip boxes' outlines.
+//! are coarse until it settles), the enabled clip boxes' outlines, and the orientation marker.
 
 use std::time::Instant;
 
@@ -50,6 +50,19 @@ impl ViewerApp {
         }
         self.handle_view_input(ui, &response, rect);
         self.draw_clip_outlines(&painter, rect);
+        self.draw_orientation_marker(&painter, rect);
+    }
+
+    /// The orientation marker in the bottom-left corner, for the camera on screen.
+    fn draw_orientation_marker(&self, painter: &egui::Painter, rect: Rect) {
+        let Some(data) = &self.rt.data else { return };
+        if !self.state.render.orientation_marker || rect.width().min(rect.height()) < 120.0 {
+            return;
+        }
+        let radius = (rect.width().min(rect.height()) * 0.07).clamp(28.0, 56.0);
+        let center = Pos2::new(rect.left() + radius * 1.6, rect.bottom() - radius * 1.6);
+        let pose = CameraPose::from_state(&self.state.camera, &data.bounds);
+        super::orientation::draw_marker(painter, center, radius, &pose, data.world_frame);
     }
 
     fn handle_view_input(&mut self, ui: &egui::Ui, response: &egui::Response, rect: Rect) {
