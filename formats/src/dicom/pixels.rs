@@ -539,20 +539,38 @@ fn decode_jpeg2000(format: &PixelFormat, encoded: &[u8], out: &mut Vec<u8>) -> R
     Ok(())
 }
 
-/// Stored value of little-endian sample `s` (of `format.sample_bytes()` bytes): the
-/// BitsStored bits ending at HighBit, sign-extended when signed.
-#[inline]
-fn stored_int(s: &[u8], format: &PixelFormat) -> i64 {
-    let mut raw = [0u8; 8];
-    raw[..s.len()].copy_from_slice(s);
-    let raw = u64::from_le_bytes(raw);
-    let bits = u32::from(format.bits_stored);
-    let shift = u32::from(format.high_bit + 1 - format.bits_stored);
-    let v = (raw >> shift) & ((1u64 << bits) - 1);
-    if format.signed && (v >> (bits - 1)) & 1 == 1 {
-        v as i64 - (1i64 << bits)
-    } else {
-        v as i64
+/// Where a sample's stored bits lie (BitsStored bits ending at HighBit) and whether they are
+/// signed: the one reading of a stored value, decided once per frame.
+#[derive(Debug, Clone, Copy)]
+struct StoredBits {
+    /// Left shift that puts the stored bits at the top of a `u64`.
+    up: u32,
+    /// Right shift that brings them back down (arithmetic when signed: sign extension).
+    down: u32,
+    signed: bool,
+}
+
+impl StoredBits {
+    fn of(format: &PixelFormat) -> Self {
+        let bits = u32::from(format.bits_stored);
+        let shift = u32::from(format.high_bit + 1 - format.bits_stored);
+        Self {
+            up: 64 - bits - shift,
+            down: 64 - bits,
+            signed: format.signed,
+        }
+    }
+
+    /// The stored value of a little-endian sample word `w` (bits above HighBit, such as
+    /// overlays, are dropped).
+    #[inline(always)]
+    fn value(self, w: u64) -> i64 {
+        let top = w << self.up;
+        if self.signed {
+            (top as i64) >> self.down
+        } else {
+            (top >> self.down) as i64
+        }
     }
 }
 
@@ -565,21 +583,75 @@ pub(crate) fn store<T: Voxel>(
     dst: &mut [T],
 ) {
     let b = format.sample_bytes();
-    let map = |v: f64| match rescale {
-        Some((slope, intercept)) => v * slope + intercept,
-        None => v,
-    };
-    for (d, s) in dst.iter_mut().zip(samples.chunks_exact(b)) {
-        let v = if format.float {
-            if b == 8 {
+    if format.float {
+        let map = |v: f64| match rescale {
+            Some((slope, intercept)) => v * slope + intercept,
+            None => v,
+        };
+        for (d, s) in dst.iter_mut().zip(samples.chunks_exact(b)) {
+            let v = if b == 8 {
                 f64::from_le_bytes([s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]])
             } else {
                 f64::from(f32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+            };
+            *d = T::from_f64(map(v));
+        }
+        return;
+    }
+    // Integers: the sample width is dispatched once per frame, not per sample (a CT frame
+    // is 2^18 samples; a per-sample copy into a u64 cost more than reading the file).
+    match b {
+        1 => store_ints(samples.iter().map(|&x| u64::from(x)), format, rescale, dst),
+        2 => store_ints(
+            samples
+                .chunks_exact(2)
+                .map(|s| u64::from(u16::from_le_bytes([s[0], s[1]]))),
+            format,
+            rescale,
+            dst,
+        ),
+        4 => store_ints(
+            samples
+                .chunks_exact(4)
+                .map(|s| u64::from(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))),
+            format,
+            rescale,
+            dst,
+        ),
+        _ => store_ints(
+            samples.chunks_exact(b).map(|s| {
+                let mut raw = [0u8; 8];
+                raw[..s.len()].copy_from_slice(s);
+                u64::from_le_bytes(raw)
+            }),
+            format,
+            rescale,
+            dst,
+        ),
+    }
+}
+
+/// [`store`] for integer samples given as raw little-endian words: masked to BitsStored,
+/// sign-extended when signed ([`StoredBits`]).
+#[inline(always)]
+fn store_ints<T: Voxel>(
+    raw: impl Iterator<Item = u64>,
+    format: &PixelFormat,
+    rescale: Option<(f64, f64)>,
+    dst: &mut [T],
+) {
+    let stored = StoredBits::of(format);
+    match rescale {
+        None => {
+            for (d, w) in dst.iter_mut().zip(raw) {
+                *d = T::from_f64(stored.value(w) as f64);
             }
-        } else {
-            stored_int(s, format) as f64
-        };
-        *d = T::from_f64(map(v));
+        }
+        Some((slope, intercept)) => {
+            for (d, w) in dst.iter_mut().zip(raw) {
+                *d = T::from_f64(stored.value(w) as f64 * slope + intercept);
+            }
+        }
     }
 }
 
@@ -604,10 +676,50 @@ mod tests {
         // 12 bits stored in 16, with overlay bits set above bit 11.
         let f = fmt(16, 12, true);
         let s = 0xF800u16 | 0x0FFF; // -1 in 12 bits, garbage above
-        assert_eq!(stored_int(&s.to_le_bytes(), &f), -1);
-        assert_eq!(stored_int(&0x07FFu16.to_le_bytes(), &f), 2047);
+        let bits = StoredBits::of(&f);
+        assert_eq!(bits.value(u64::from(s)), -1);
+        assert_eq!(bits.value(0x07FF), 2047);
         let u = fmt(16, 12, false);
-        assert_eq!(stored_int(&0xFFFFu16.to_le_bytes(), &u), 4095);
+        assert_eq!(StoredBits::of(&u).value(0xFFFF), 4095);
+        // HighBit below the top: 12 bits stored at bits 2..=13 of 16.
+        let mut shifted = fmt(16, 12, true);
+        shifted.high_bit = 13;
+        assert_eq!(StoredBits::of(&shifted).value(0xFFFF << 2 | 0b11), -1);
+        assert_eq!(StoredBits::of(&shifted).value(0x07FF << 2), 2047);
+        // Every width store() dispatches on reads as the generic path does.
+        for (ba, bs) in [(8, 8), (16, 16), (32, 32), (32, 20)] {
+            for signed in [false, true] {
+                let f = fmt(ba, bs, signed);
+                let words: Vec<u64> = vec![
+                    0,
+                    1,
+                    (1u64 << (bs - 1)) - 1,
+                    1u64 << (bs - 1),
+                    (1u64 << bs) - 1,
+                ];
+                let bytes: Vec<u8> = words
+                    .iter()
+                    .flat_map(|w| w.to_le_bytes()[..usize::from(ba / 8)].to_vec())
+                    .collect();
+                let mut got = vec![0f64; words.len()];
+                store(&bytes, &f, None, &mut got);
+                let want: Vec<f64> = words
+                    .iter()
+                    .map(|&w| {
+                        let w = i64::try_from(w).unwrap();
+                        if signed && w >= 1 << (bs - 1) {
+                            (w - (1 << bs)) as f64
+                        } else {
+                            w as f64
+                        }
+                    })
+                    .collect();
+                assert_eq!(
+                    got, want,
+                    "{ba} bits allocated, {bs} stored, signed {signed}"
+                );
+            }
+        }
         let mut out = [0i16; 2];
         store(&[0xFF, 0x0F, 0x00, 0x08], &f, None, &mut out);
         assert_eq!(out, [-1, -2048]);
