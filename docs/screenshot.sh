@@ -12,6 +12,12 @@
 #   docs/images/screenshot-tet.png   a generated tet mesh (`isoscope generate tet-ball`)
 #                                    restored from a session: point array "gaussians", an
 #                                    opaque isosurface inside a transparent one
+#   docs/images/dicom-ct.png         a CT-like DICOM series written by pydicom
+#                                    (data-samples/scripts/make_dicom_ct.py; needs PYTHON
+#                                    with numpy and pydicom, skipped without), skin and bone
+#                                    in HU, seen from the patient's front right, with the
+#                                    orientation marker
+#   PYTHON        the Python for the DICOM shot (default python3)
 #   ISOSCOPE_BIN  the binary to run (default: target/debug/isoscope, built if missing;
 #                 the dev profile is optimized, see the root Cargo.toml)
 #   WAIT_SECONDS  how long to let the app load and render before the shot (default 25)
@@ -99,3 +105,27 @@ cat >"$work/ball-session.json" <<JSON
 }
 JSON
 shot docs/images/screenshot-tet.png "$work/ball-session.json"
+# A DICOM CT: the series is written by pydicom, opened as a folder (LPS world, HU values);
+# the session sets a front-right view (LPS: anterior is −y, right is −x) and two surfaces.
+python="${PYTHON:-python3}"
+if "$python" -c "import numpy, pydicom" 2>/dev/null; then
+    "$python" data-samples/scripts/make_dicom_ct.py "$work/ct" --size 256 --slices 160
+    cat >"$work/ct-session.json" <<JSON
+{
+  "version": 1,
+  "files": ["$work/ct"],
+  "camera": {"azimuth_deg": 235.0, "elevation_deg": 15.0, "zoom": 0.8},
+  "surfaces": [
+    {"isovalue": 500.0, "color": [0.92, 0.88, 0.78], "opacity": 1.0, "visible": true},
+    {"isovalue": -300.0, "color": [0.85, 0.55, 0.45], "opacity": 0.35, "visible": true}
+  ],
+  "clip_boxes": [
+    {"enabled": true, "min": [0.0, 0.0, 0.55], "max": [0.5, 0.5, 1.0], "keep": "Outside"}
+  ],
+  "render": {"max_layers": 6}
+}
+JSON
+    shot docs/images/dicom-ct.png "$work/ct-session.json"
+else
+    echo "skipped docs/images/dicom-ct.png: $python has no numpy/pydicom" >&2
+fi

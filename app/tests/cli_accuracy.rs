@@ -46,6 +46,11 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         .join("../data-samples/samples/torus32_u8.nrrd")
         .canonicalize()
         .unwrap();
+    // A real MRI that we did not write (nibabel's test data, big-endian i16).
+    let mri = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../formats/tests/data/nifti/anatomical.nii")
+        .canonicalize()
+        .unwrap();
     ok(&[
         "accuracy",
         "--quick",
@@ -57,6 +62,8 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         s(&images),
         "--volume",
         &format!("{}:40,100.5", torus.display()),
+        "--volume",
+        &format!("{}:9000", mri.display()),
     ]);
     let md = std::fs::read_to_string(&md_path).unwrap();
     let json: serde_json::Value =
@@ -71,10 +78,11 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
     let datasets = json["datasets"].as_array().unwrap();
     assert_eq!(
         datasets.len(),
-        7,
-        "ML two sizes × f32/u8, the phantom smooth and noisy, and the --volume file"
+        8,
+        "ML two sizes × f32/u8, the phantom smooth and noisy, and the two --volume files"
     );
     assert_eq!(datasets[6]["isovalues"], serde_json::json!([40.0, 100.5]));
+    assert_eq!(datasets[7]["isovalues"], serde_json::json!([9000.0]));
     for d in datasets {
         let name = d["name"].as_str().unwrap();
         let sec = section(&md, name);

@@ -233,6 +233,34 @@ fn bench_json_has_the_documented_fields() {
 }
 
 #[test]
+fn bench_shadows_trace_one_shadow_ray_per_lit_hit() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let bench = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "bench",
+            s(&vol),
+            "--size",
+            "32x32",
+            "--frames",
+            "1",
+            "--skip-dda",
+            "--skip-single",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        serde_json::from_str(ok(&args).trim()).unwrap()
+    };
+    let plain = &bench(&[])["configs"][0];
+    let shadowed = &bench(&["--shadows"])["configs"][0];
+    assert_eq!(plain["shadow_rays_per_frame"], 0);
+    // The same frame with a key light: a shadow ray from every hit that faces the light (at
+    // most one per pixel, and the sphere fills a good part of the frame).
+    let shadow_rays = shadowed["shadow_rays_per_frame"].as_u64().unwrap();
+    assert!(shadow_rays > 50 && shadow_rays <= 32 * 32, "{shadow_rays}");
+}
+
+#[test]
 fn bench_iso_sweep_changes_the_isovalue_every_frame() {
     let dir = tempfile::tempdir().unwrap();
     let vol = sphere_volume(dir.path());

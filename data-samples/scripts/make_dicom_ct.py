@@ -6,8 +6,9 @@ positions in LPS as scanners write them.
 
     python make_dicom_ct.py OUT_DIR [--size 512] [--slices 300]
 
-The volume is a head-sized water ellipsoid with a 7 mm skull shell and noise (σ 20 HU), so
-bone is an isosurface at 300 HU. Independent of Isoscope: numpy and pydicom only."""
+The volume is a head-sized ellipsoid: skin, a skull shell 5–12 mm deep, brain, edges
+blurred over about a millimetre, noise σ 20 HU; bone is an isosurface at 300–600 HU, skin
+at -300 HU. Independent of Isoscope: numpy and pydicom only."""
 import argparse
 import os
 
@@ -32,14 +33,21 @@ def main():
     study, series, frame = generate_uid(), generate_uid(), generate_uid()
     for k in range(nz):
         z = (k - nz / 2) * dz
-        # Ellipsoid radii in mm (head: 80 x 95 x 110); the shell is the outer 7 mm.
+        # Ellipsoid radii in mm (head: 80 x 95 x 110); depth below the skin in mm along
+        # the normalised radius. Soft tissue 40 HU, a skull from 5 to 12 mm deep (1200 HU),
+        # brain 30 HU; edges blurred over about a millimetre (partial volume), as a scanner's
+        # point spread does, so the surfaces are smooth and not voxel terraces.
         rx, ry, rz = 80.0, 95.0, 110.0
         r = np.sqrt(((x - cx) * px / rx) ** 2 + ((y - cy) * px / ry) ** 2 + (z / rz) ** 2)
-        hu = np.full((n, n), -1000.0, np.float32)
-        inside = r < 1.0
-        hu[inside] = 40.0
-        shell = inside & (r > 1.0 - 7.0 / 95.0)
-        hu[shell] = 1200.0
+        depth = (1.0 - r) * 90.0
+
+        def step(d):
+            return 1.0 / (1.0 + np.exp(np.clip(-d / 0.6, -60.0, 60.0)))
+
+        hu = -1000.0 + 1040.0 * step(depth)
+        skull = step(depth - 5.0) * step(12.0 - depth)
+        hu += 1160.0 * skull
+        hu += -10.0 * step(depth - 12.0)
         hu += rng.normal(0.0, 20.0, hu.shape).astype(np.float32)
         stored = np.clip(np.round(hu + 1024.0), -32768, 32767).astype(np.int16)
 

@@ -91,6 +91,10 @@ pub struct Args {
     /// renderer uses (e.g. for profiles and peer comparisons).
     #[arg(long)]
     pub skip_single: bool,
+    /// Cast shadow rays towards a key light (above, left and behind the camera, as `render
+    /// --shadows`): the cost of shadows against the same bench without this flag.
+    #[arg(long)]
+    pub shadows: bool,
     /// Also render N frames that each change the isovalue (over the middle half of the value
     /// range) and compare them with the steady frames (volumes and meshes).
     #[arg(long, value_name = "N")]
@@ -139,6 +143,8 @@ pub struct ConfigReport {
     /// Meshes: isopolygon extractions (marching tetrahedra) in the statistics frame.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub extractions_per_frame: Option<u64>,
+    /// Shadow rays traced in the statistics frame (0 without `--shadows`).
+    pub shadow_rays_per_frame: u64,
     /// DDA median time / this median time (`null` without the DDA run).
     pub speedup_vs_dda: Option<f64>,
 }
@@ -358,6 +364,7 @@ fn time_frames(
         box_tests_per_frame: Some(c.box_tests),
         isopolygon_tests_per_frame: Some(c.intersection_tests),
         extractions_per_frame: Some(c.polygon_extractions),
+        shadow_rays_per_frame: s.rays.shadow,
         speedup_vs_dda: None,
     })
 }
@@ -419,12 +426,18 @@ fn setup(args: &Args) -> anyhow::Result<Setup> {
     )?;
     let surfaces: Vec<Surface> = surfaces_for(&args.iso, &scene)?;
     let camera = args.view.camera(&scene.world_bounds())?;
-    let settings = RenderSettings {
+    let mut settings = RenderSettings {
         width: args.size[0],
         height: args.size[1],
         surfaces,
         ..RenderSettings::default()
     };
+    if args.shadows {
+        settings.shadows = true;
+        settings.light.kind = volume_core::render::LightKind::Directional {
+            dir: super::render::default_key_light(&camera),
+        };
+    }
     settings.validate()?;
     let isovalues = settings.active_isovalues().0;
     Ok(Setup {
