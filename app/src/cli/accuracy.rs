@@ -395,6 +395,53 @@ pub const FALSE_HIT: [u8; 3] = [0, 150, 255];
 /// Both hit, different surfaces.
 pub const WRONG_SURFACE: [u8; 3] = [255, 0, 255];
 
+/// Most pixels per side of the PNGs (every ray is still scored): a larger frame is shown
+/// reduced by square blocks, so 1024² reports keep `docs/images` small.
+pub const MAX_IMAGE_SIDE: u32 = 256;
+
+/// The side of the blocks that bring a `size` frame within [`MAX_IMAGE_SIDE`].
+pub fn image_block(size: [u32; 2]) -> u32 {
+    size[0].max(size[1]).div_ceil(MAX_IMAGE_SIDE).max(1)
+}
+
+/// How bad an outcome is, for [`worst_per_block`]: errors above the worst |Δt|, above no hit.
+fn severity(o: &RayOutcome) -> (u8, f64) {
+    match *o {
+        RayOutcome::NoHit => (0, 0.0),
+        RayOutcome::Both {
+            abs_dt_cells,
+            same_surface: true,
+        } => (1, abs_dt_cells),
+        RayOutcome::Both { .. } => (2, 0.0),
+        RayOutcome::Missed => (3, 0.0),
+        RayOutcome::False => (4, 0.0),
+    }
+}
+
+/// The outcomes of a `width × height` frame reduced by `block × block` squares, each to its
+/// worst outcome (so one missed ray still shows), with the reduced width and height.
+pub fn worst_per_block(
+    outcomes: &[RayOutcome],
+    width: u32,
+    height: u32,
+    block: u32,
+) -> (Vec<RayOutcome>, u32, u32) {
+    let block = block.max(1);
+    let (w, h) = (width.div_ceil(block), height.div_ceil(block));
+    let mut out = vec![RayOutcome::NoHit; w as usize * h as usize];
+    for (n, o) in outcomes.iter().enumerate() {
+        let (x, y) = ((n % width as usize) as u32, (n / width as usize) as u32);
+        if y >= height {
+            break;
+        }
+        let cell = &mut out[(y / block * w + x / block) as usize];
+        if severity(o).partial_cmp(&severity(cell)) == Some(std::cmp::Ordering::Greater) {
+            *cell = *o;
+        }
+    }
+    (out, w, h)
+}
+
 /// The difference image: |Δt| heat map; missed, false and wrong-surface pixels drawn as
 /// 3×3 marks on top so that single pixels stay visible.
 pub fn difference_image(outcomes: &[RayOutcome], width: u32, height: u32) -> image::RgbImage {
@@ -516,7 +563,13 @@ fn measure_dataset(
     settings.validate()?;
 
     let go = AtomicBool::new(false);
-    let frame = render_grid(&scene, false, &camera, &settings, &go).context("cancelled")?;
+    let block = image_block(size);
+    let picture = RenderSettings {
+        width: size[0].div_ceil(block),
+        height: size[1].div_ceil(block),
+        ..settings.clone()
+    };
+    let frame = render_grid(&scene, false, &camera, &picture, &go).context("cancelled")?;
     let render_path = images.join(format!("{}-render.png", spec.slug));
     save_png(&frame, &render_path, replace)?;
 
@@ -547,11 +600,8 @@ fn measure_dataset(
         let mut row = Row::new(method.to_string(), timing.rays_per_second / 1e6, &report);
         if method != Intersector::Reference {
             let path = images.join(format!("{}-{method}.png", spec.slug));
-            save_rgb(
-                &difference_image(&outcomes, size[0], size[1]),
-                &path,
-                replace,
-            )?;
+            let (worst, w, h) = worst_per_block(&outcomes, size[0], size[1], block);
+            save_rgb(&difference_image(&worst, w, h), &path, replace)?;
             row.image = Some(relative_path(md_dir, &path)?);
         }
         rows.push(row);
@@ -730,7 +780,10 @@ fn format_head(s: &mut String, doc: &AccuracyDoc, legend: &str) {
          full frames at that size (kd-tree, 16-ray packets, shading, all threads; \
          `isoscope bench`'s measurement), so it includes the traversal and shading every \
          method shares. Extreme suite: Mrays/s of the single-threaded one-ray-at-a-time \
-         traversal over the suite's few thousand rays (noisy; a relative measure only).\n"
+         traversal over the suite's few thousand rays (noisy; a relative measure only). \
+         Images of frames wider than {MAX_IMAGE_SIDE} pixels are reduced by square blocks: \
+         a difference image's pixel shows the worst ray of its block (every ray is scored; one \
+         missed ray still shows).\n"
     );
     let _ = writeln!(s, "## Error behaviour\n\n{METHOD_NOTES}");
     let _ = writeln!(
@@ -1046,6 +1099,31 @@ mod tests {
         assert_eq!(img.get_pixel(3, 0).0, heat_color(1.0));
         assert_eq!(img.get_pixel(3, 3).0, FALSE_HIT);
         assert_eq!(img.get_pixel(0, 3).0, NO_HIT);
+    }
+
+    #[test]
+    fn blocks_keep_their_worst_ray() {
+        assert_eq!(image_block([1024, 1024]), 4);
+        assert_eq!(image_block([48, 48]), 1);
+        assert_eq!(image_block([257, 10]), 2);
+        let both = |dt: f64| RayOutcome::Both {
+            abs_dt_cells: dt,
+            same_surface: true,
+        };
+        // 3×2 rays in blocks of 2: [0..2)×[0..2) and the cut block [2..3)×[0..2).
+        let outcomes = [
+            both(1e-6),
+            RayOutcome::Missed,
+            both(1e-3),
+            RayOutcome::NoHit,
+            both(0.5),
+            RayOutcome::NoHit,
+        ];
+        let (worst, w, h) = worst_per_block(&outcomes, 3, 2, 2);
+        assert_eq!((w, h), (2, 1));
+        assert_eq!(worst, vec![RayOutcome::Missed, both(1e-3)]);
+        let (worst, ..) = worst_per_block(&[both(1e-6), both(0.5), RayOutcome::NoHit], 3, 1, 3);
+        assert_eq!(worst, vec![both(0.5)]);
     }
 
     #[test]
