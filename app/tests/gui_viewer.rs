@@ -1031,3 +1031,30 @@ fn view_presets_follow_the_anatomical_frame_and_reach_the_renderer() {
     h.run_steps(2);
     assert!(!h.state().state.render.orientation_marker);
 }
+
+#[test]
+fn a_tiff_stack_takes_its_spacing_from_the_data_section() {
+    // A 10×8×6 stack written by tifffile without ImageJ metadata: spacing 1 until set.
+    let tif =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../formats/tests/data/tiff/plain_u16.tif");
+    let mut h = real_harness(vec![tif]);
+    step_until(&mut h, "the TIFF stack", |a| a.data().is_some());
+    settle(&mut h);
+    let e = h.state().data().unwrap().bounds.extent();
+    assert_eq!([e.x, e.y, e.z], [9.0, 7.0, 5.0]);
+    h.get_by_label("Spacing z").set_value_accesskit(2.5);
+    h.get_by_label("Spacing x").set_value_accesskit(0.5);
+    h.run_steps(2);
+    h.get_by_label("Apply spacing").click();
+    h.run_steps(2);
+    step_until(&mut h, "the stack opened again", |a| {
+        a.data()
+            .is_some_and(|d| (d.bounds.extent().z - 12.5).abs() < 1e-4)
+    });
+    let e = h.state().data().unwrap().bounds.extent();
+    assert!(
+        (e.x - 4.5).abs() < 1e-4 && (e.y - 7.0).abs() < 1e-4,
+        "{e:?}"
+    );
+    assert_eq!(h.state().state.tiff_spacing, Some([0.5, 1.0, 2.5]));
+}

@@ -149,6 +149,7 @@ impl ViewerApp {
             smooth_normals: self.state.render.smooth_normals,
             field: self.state.field.clone(),
             dicom_series: None,
+            spacing: self.state.tiff_spacing,
         }
     }
 }

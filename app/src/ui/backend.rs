@@ -208,6 +208,8 @@ pub struct OpenChoices {
     pub field: Option<String>,
     /// DICOM inputs of several series: the one picked (its number or SeriesInstanceUID).
     pub dicom_series: Option<String>,
+    /// TIFF stacks: the spacing of axes the file does not record (ignored for other files).
+    pub spacing: Option<[f64; 3]>,
 }
 
 /// One series of a DICOM input, as the series picker lists it.

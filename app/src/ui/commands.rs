@@ -56,6 +56,9 @@ pub enum Command {
     AddClipPlane,
     RemoveClipPlane(usize),
     ResetView,
+    /// TIFF stacks: opens the shown file again with this spacing (x, y, z) for the axes the
+    /// file does not record.
+    SetTiffSpacing([f64; 3]),
     /// Looks at the data from one side (anatomical when the world frame is known).
     ViewFrom(super::orientation::ViewSide),
     AddBookmark,
@@ -147,6 +150,12 @@ impl ViewerApp {
                 self.state.clip_planes.remove(i);
             }
             Command::ResetView => self.state.camera = CameraState::default(),
+            Command::SetTiffSpacing(spacing) => {
+                if let Some(path) = self.rt.data.as_ref().and_then(|d| d.path.clone()) {
+                    self.state.tiff_spacing = Some(spacing);
+                    self.open_path(path, None);
+                }
+            }
             Command::ViewFrom(side) => {
                 let frame = self
                     .rt
@@ -234,6 +243,8 @@ impl ViewerApp {
 
     /// Several files of one kind and shape open as a time series (see [`group_files`]).
     fn open_files(&mut self, files: &[PathBuf]) {
+        // Another file: its own spacing (a session restores its saved one after this).
+        self.state.tiff_spacing = None;
         // A session file (from the command line, drag and drop or the file dialog) restores
         // the session instead.
         if let [one] = files

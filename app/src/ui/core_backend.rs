@@ -309,6 +309,7 @@ fn raw_layout(state: &RawLayoutState) -> Result<formats::raw::RawLayout, String>
 }
 
 fn scene_options(
+    path: &Path,
     raw: Option<&RawLayoutState>,
     choices: &OpenChoices,
 ) -> Result<SceneOptions, String> {
@@ -316,6 +317,10 @@ fn scene_options(
         open: formats::OpenOptions {
             raw: raw.map(raw_layout).transpose()?,
             dicom_series: choices.dicom_series.clone(),
+            // Other formats record their spacing and refuse one.
+            spacing: choices
+                .spacing
+                .filter(|_| formats::tiff::is_tiff_path(path)),
             ..formats::OpenOptions::default()
         },
         intersector: intersector(choices.intersector),
@@ -332,7 +337,7 @@ impl Backend for CoreBackend {
         choices: OpenChoices,
         control: &JobControl,
     ) -> Result<LoadedData, String> {
-        let options = scene_options(raw, &choices)?;
+        let options = scene_options(path, raw, &choices)?;
         // Reading and building take 90% of the bar, the histogram scan the rest.
         let progress = |f: f32| control.set_progress(0.9 * f);
         let open_control = OpenControl {

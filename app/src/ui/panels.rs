@@ -78,6 +78,7 @@ pub fn data_ui(
     state: &ViewerState,
     data: Option<&LoadedData>,
     active_file: usize,
+    spacing_edit: &mut Option<(PathBuf, [f64; 3])>,
     commands: &mut Vec<Command>,
 ) {
     match data {
@@ -110,6 +111,9 @@ pub fn data_ui(
                     commands.push(Command::SetField(chosen));
                 }
             }
+            if let Some(path) = d.path.as_ref().filter(|p| formats::tiff::is_tiff_path(p)) {
+                tiff_spacing_ui(ui, d, path, spacing_edit, commands);
+            }
         }
         None => {
             ui.label("no data loaded");
@@ -126,6 +130,53 @@ pub fn data_ui(
                 commands.push(Command::ShowFile(i));
             }
         }
+    }
+}
+
+/// TIFF stacks: the spacing per axis (ImageJ metadata or 1 where the file says nothing), and
+/// *Apply spacing* to open the stack again with the edited values (the CLI's `--spacing`).
+fn tiff_spacing_ui(
+    ui: &mut Ui,
+    d: &LoadedData,
+    path: &std::path::Path,
+    spacing_edit: &mut Option<(PathBuf, [f64; 3])>,
+    commands: &mut Vec<Command>,
+) {
+    if spacing_edit.as_ref().is_none_or(|(p, _)| p != path) {
+        // The shown grid's spacing: its extent over its cells (TIFF grids are uniform and
+        // axis-aligned).
+        let e = d.bounds.extent();
+        let spacing = [0, 1, 2].map(|a| {
+            let cells = d.dims[a].saturating_sub(1);
+            if cells == 0 {
+                1.0
+            } else {
+                f64::from(e[a]) / cells as f64
+            }
+        });
+        *spacing_edit = Some((path.to_path_buf(), spacing));
+    }
+    let Some((_, spacing)) = spacing_edit.as_mut() else {
+        return;
+    };
+    ui.horizontal_wrapped(|ui| {
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            labelled_drag(
+                ui,
+                &format!("Spacing {axis}"),
+                DragValue::new(&mut spacing[a])
+                    .speed(0.01)
+                    .range(1e-6..=1e6)
+                    .max_decimals(6),
+            );
+        }
+    });
+    if ui
+        .button("Apply spacing")
+        .on_hover_text("open the stack again with this spacing (for axes without metadata)")
+        .clicked()
+    {
+        commands.push(Command::SetTiffSpacing(*spacing));
     }
 }
 
@@ -591,6 +642,7 @@ impl ViewerApp {
                         &self.state,
                         self.rt.data.as_ref(),
                         self.rt.active_file,
+                        &mut self.rt.spacing_edit,
                         &mut self.commands,
                     );
                 });

@@ -76,6 +76,8 @@ pub struct Runtime {
     /// Steps of this epoch whose data is loaded ahead.
     pub prefetched: Vec<usize>,
     pub lod: Option<LodStatus>,
+    /// TIFF stacks: the spacing being edited in the Data section, and the file it is for.
+    pub spacing_edit: Option<(PathBuf, [f64; 3])>,
     /// The newest request, to start when the running (coarse) render finishes.
     pub pending_render: Option<RenderRequest>,
     /// Generation of the last render started.
@@ -102,6 +104,7 @@ impl Default for Runtime {
             scene_step: 0,
             prefetched: Vec::new(),
             lod: None,
+            spacing_edit: None,
             pending_render: None,
             generation: 0,
             shown: None,

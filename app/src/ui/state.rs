@@ -31,6 +31,9 @@ pub struct ViewerState {
     pub clip_planes: Vec<ClipPlaneState>,
     pub render: RenderOptions,
     pub time: TimeState,
+    /// TIFF stacks: the spacing of the axes the file does not record (the viewer's
+    /// counterpart of `--spacing`); `None`: the file's ImageJ metadata, else 1.
+    pub tiff_spacing: Option<[f64; 3]>,
 }
 
 impl Default for ViewerState {
@@ -47,6 +50,7 @@ impl Default for ViewerState {
             clip_planes: Vec::new(),
             render: RenderOptions::default(),
             time: TimeState::default(),
+            tiff_spacing: None,
         }
     }
 }
@@ -116,6 +120,11 @@ impl ViewerState {
                 self.raw_layout
                     .as_ref()
                     .is_some_and(|l| l.spacing.iter().any(|x| !x.is_finite())),
+            ),
+            (
+                "tiff_spacing",
+                self.tiff_spacing
+                    .is_some_and(|s| s.iter().any(|x| !(x.is_finite() && *x > 0.0))),
             ),
         ]
         .into_iter()
