@@ -44,6 +44,8 @@ mod oriented;
 pub mod output;
 pub mod raw;
 pub mod series;
+#[cfg(test)]
+mod test_support;
 pub mod tiff;
 pub mod treelet;
 pub mod vtk_image;

@@ -297,22 +297,14 @@ pub fn write_nifti_series(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Dataset;
     use crate::nifti::read_nifti;
     use glam::DAffine3;
     use volume_core::{AxisCoords, Grid, ValueMap};
 
-    fn sample(grid: Grid) -> RectilinearVolume {
-        let n = grid.voxel_count();
-        let data: Vec<i16> = (0..n).map(|i| (i as i16) * 37 - 500).collect();
-        RectilinearVolume::new(grid, data.into()).unwrap()
-    }
+    use crate::test_support::{sample_volume as sample, volume_of};
 
     fn read_volume(p: &Path) -> RectilinearVolume {
-        match read_nifti(p).unwrap() {
-            Dataset::Volume(v) => v,
-            Dataset::Series(_) => panic!("volume expected"),
-        }
+        volume_of(read_nifti(p))
     }
 
     fn same_voxels(a: &RectilinearVolume, b: &RectilinearVolume) {

@@ -236,22 +236,14 @@ pub fn write_nrrd_detached(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Dataset;
     use crate::nrrd::read_nrrd;
     use glam::{DAffine3, DMat3};
     use volume_core::Grid;
 
-    fn sample(grid: Grid) -> RectilinearVolume {
-        let n = grid.voxel_count();
-        let data: Vec<i16> = (0..n).map(|i| (i as i16) * 37 - 500).collect();
-        RectilinearVolume::new(grid, data.into()).unwrap()
-    }
+    use crate::test_support::{sample_volume as sample, volume_of};
 
     fn read_volume(p: &Path) -> RectilinearVolume {
-        match read_nrrd(p).unwrap() {
-            Dataset::Volume(v) => v,
-            Dataset::Series(_) => panic!("volume expected"),
-        }
+        volume_of(read_nrrd(p))
     }
 
     #[test]
