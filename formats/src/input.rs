@@ -22,7 +22,8 @@
 //! after resolution. The log is process-wide rather than passed along because inputs are read
 //! on worker threads and lazily (a time step long after the open), and because one log that
 //! every reader feeds through these functions cannot miss a reader added later. It only
-//! grows; an entry whose file has since been removed or replaced no longer matches.
+//! grows (unless emptied by [`forget_inputs`], between unrelated inputs of a process that writes
+//! nothing); an entry whose file has since been removed or replaced no longer matches.
 
 use std::fs::{File, FileType, Metadata};
 use std::io::{self, Read};
@@ -90,6 +91,18 @@ fn record(path: &Path, meta: Option<&Metadata>) {
 /// that no output replaces it in the meantime.
 pub fn note_input(path: &Path) {
     record(path, std::fs::metadata(path).ok().as_ref());
+}
+
+/// Empties the input log. For a process that reads unrelated inputs one after another and
+/// writes no output in between, where each input starts as a fresh process would: the fuzz
+/// targets, whose scratch files are removed and written again for every execution (a new inode
+/// each time, so the log would otherwise gain entries on every execution and every later
+/// [`open_regular`] would scan them all).
+pub fn forget_inputs() {
+    INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .clear();
 }
 
 /// The recorded input that `output` would overwrite, if any: the same device and inode as an
