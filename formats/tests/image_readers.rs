@@ -696,6 +696,17 @@ fn bad_legacy_vtk_images_are_clear_errors() {
         ),
         "{e}"
     );
+    // A second DIMENSIONS after the data (found by the fuzzer): the data was checked against
+    // the first, so the grid no longer matched it (a failed assertion).
+    let e = vtk("points_v42_binary.vtk", &|p| {
+        let mut bytes = std::fs::read(p).unwrap();
+        bytes.extend_from_slice(b"\nDIMENSIONS 9 8 6\n");
+        std::fs::write(p, bytes).unwrap();
+    });
+    assert!(
+        matches!(&e, FormatError::BadLine { reason, .. } if reason.contains("DIMENSIONS")),
+        "{e}"
+    );
     let e = vtk("points_v51_ascii.vtk", &|p| {
         replace_in(p, "SCALARS density short", "SCALARS density vtktypeint64");
     });
