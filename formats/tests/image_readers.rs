@@ -560,7 +560,7 @@ fn metaimage_pattern_of_100000_slice_files_is_read_without_a_scan_per_file() {
         let _ = send.send(formats::metaimage::read_metaimage(&header).map(|_| ()));
     });
     let e = receive
-        .recv_timeout(std::time::Duration::from_secs(60))
+        .recv_timeout(std::time::Duration::from_mins(1))
         .expect("read_metaimage still running after 60 s")
         .unwrap_err();
     assert!(

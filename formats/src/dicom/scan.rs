@@ -111,8 +111,8 @@ struct Header {
 }
 
 /// Size of one value of a VR read as numbers (PS3.5 Table 6.2-1), 1 for the others.
-fn vr_unit(vr: &[u8; 2]) -> u32 {
-    match vr {
+fn vr_unit(vr: [u8; 2]) -> u32 {
+    match &vr {
         b"US" | b"SS" | b"OW" => 2,
         b"UL" | b"SL" | b"FL" | b"OF" | b"OL" | b"AT" => 4,
         b"FD" | b"OD" | b"SV" | b"UV" | b"OV" => 8,
@@ -224,7 +224,7 @@ impl Walker<'_> {
         if !self.enc.explicit_vr {
             // dicom-rs takes an implicit VR from the standard dictionary (UN if unknown).
             let vr = StandardDataDictionary.by_tag(tag).map(|e| e.vr().relaxed());
-            let unit = vr.map_or(1, |vr| vr_unit(&vr.to_bytes()));
+            let unit = vr.map_or(1, |vr| vr_unit(vr.to_bytes()));
             return Ok(Header {
                 tag,
                 len: self.u32(p + 4),
@@ -240,7 +240,7 @@ impl Walker<'_> {
                 len: u32::from(self.u16(p + 6)),
                 size: 8,
                 sequence: false,
-                unit: vr_unit(&vr),
+                unit: vr_unit(vr),
             });
         }
         if p + 12 > limit {
@@ -251,7 +251,7 @@ impl Walker<'_> {
             len: self.u32(p + 8),
             size: 12,
             sequence: &vr == b"SQ",
-            unit: vr_unit(&vr),
+            unit: vr_unit(vr),
         })
     }
 
