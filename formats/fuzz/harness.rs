@@ -29,8 +29,14 @@ fn err(e: impl std::fmt::Display) -> String {
     e.to_string()
 }
 
-/// A scratch directory for this process and thread (tests replay on several threads).
+/// A scratch directory for this process and thread (tests replay on several threads). Also
+/// empties the readers' input log ([`formats::input::forget_inputs`]): each execution reads
+/// its files as a fresh process would, and the log, which only grows, does not gain an entry
+/// for every scratch file an earlier execution removed (it slowed the file-based targets to a
+/// crawl as it grew). No target writes an output, so emptying it while another replay thread
+/// reads changes nothing.
 pub fn scratch_dir(name: &str) -> PathBuf {
+    formats::input::forget_inputs();
     let thread = format!("{:?}", std::thread::current().id());
     let thread: String = thread.chars().filter(char::is_ascii_digit).collect();
     let dir = Path::new("/dev/shm").join(format!(

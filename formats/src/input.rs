@@ -22,21 +22,38 @@
 //! after resolution. The log is process-wide rather than passed along because inputs are read
 //! on worker threads and lazily (a time step long after the open), and because one log that
 //! every reader feeds through these functions cannot miss a reader added later. It only
-//! grows; an entry whose file has since been removed or replaced no longer matches.
+//! grows (unless emptied by [`forget_inputs`], between unrelated inputs of a process that writes
+//! nothing); an entry whose file has since been removed or replaced no longer matches.
 
+use std::collections::HashSet;
 use std::fs::{File, FileType, Metadata};
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{LazyLock, Mutex, MutexGuard};
 
 /// One input file: the path as resolved when it was read, and its identity.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
 struct InputFile {
     path: PathBuf,
     id: Option<(u64, u64)>,
 }
 
-static INPUTS: Mutex<Vec<InputFile>> = Mutex::new(Vec::new());
+/// The log: the entries in the order they were recorded, and the same entries hashed, so that
+/// recording one is not a scan of the log (a MetaImage or NRRD pattern may name a million data
+/// files, each noted in turn: a scan per file took hours).
+#[derive(Default)]
+struct InputLog {
+    order: Vec<InputFile>,
+    seen: HashSet<InputFile>,
+}
+
+static INPUTS: LazyLock<Mutex<InputLog>> = LazyLock::new(Mutex::default);
+
+fn input_log() -> MutexGuard<'static, InputLog> {
+    INPUTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
 
 /// Device and inode (Unix); `None` elsewhere, where only paths are compared.
 // `None` only off Unix.
@@ -78,11 +95,9 @@ fn record(path: &Path, meta: Option<&Metadata>) {
         path: resolved_path(path),
         id: meta.and_then(file_id),
     };
-    let mut log = INPUTS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    if !log.contains(&entry) {
-        log.push(entry);
+    let mut log = input_log();
+    if log.seen.insert(entry.clone()) {
+        log.order.push(entry);
     }
 }
 
@@ -92,16 +107,25 @@ pub fn note_input(path: &Path) {
     record(path, std::fs::metadata(path).ok().as_ref());
 }
 
+/// Empties the input log. For a process that reads unrelated inputs one after another and
+/// writes no output in between, where each input starts as a fresh process would: the fuzz
+/// targets, whose scratch files are removed and written again for every execution (a new inode
+/// each time, so the log would otherwise gain entries on every execution).
+pub fn forget_inputs() {
+    let mut log = input_log();
+    log.order.clear();
+    log.seen.clear();
+}
+
 /// The recorded input that `output` would overwrite, if any: the same device and inode as an
 /// input that still exists under its recorded path (so a removed input whose inode was reused
 /// does not match), or the same resolved path.
 pub fn input_matching(output: &Path) -> Option<PathBuf> {
     let out_path = resolved_path(output);
     let out_id = std::fs::metadata(output).ok().as_ref().and_then(file_id);
-    let log = INPUTS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    log.iter()
+    let log = input_log();
+    log.order
+        .iter()
         .find(|input| {
             if input.path == out_path {
                 return true;

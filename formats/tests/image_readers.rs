@@ -544,6 +544,32 @@ fn metaimage_data_file_names_of_any_text_are_not_sliced_mid_character() {
 }
 
 #[test]
+fn metaimage_pattern_of_100000_slice_files_is_read_without_a_scan_per_file() {
+    // Every data file is noted in the input log before any is read; each note scanned the
+    // whole log, so 10^5 names took minutes (10^4: 10 s, found by the fuzzer) and the 2^20
+    // the header may name, hours. The files are missing: the first is named, in a second.
+    let dir = tempfile::tempdir().unwrap();
+    let header = dir.path().join("p.mhd");
+    std::fs::write(
+        &header,
+        "NDims = 3\nDimSize = 1 1 100000\nElementType = MET_UCHAR\nElementDataFile = s%06d.raw 1 100000 1\n",
+    )
+    .unwrap();
+    let (send, receive) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = send.send(formats::metaimage::read_metaimage(&header).map(|_| ()));
+    });
+    let e = receive
+        .recv_timeout(std::time::Duration::from_mins(1))
+        .expect("read_metaimage still running after 60 s")
+        .unwrap_err();
+    assert!(
+        matches!(&e, FormatError::Io { path, .. } if path.ends_with("s000001.raw")),
+        "{e}"
+    );
+}
+
+#[test]
 fn metaimage_world_frame_follows_anatomical_orientation() {
     use formats::metaimage::{parse_header, world_frame};
     use volume_core::WorldFrame;
@@ -668,6 +694,17 @@ fn bad_legacy_vtk_images_are_clear_errors() {
             e,
             FormatError::BadLine { .. } | FormatError::Contradiction { .. }
         ),
+        "{e}"
+    );
+    // A second DIMENSIONS after the data (found by the fuzzer): the data was checked against
+    // the first, so the grid no longer matched it (a failed assertion).
+    let e = vtk("points_v42_binary.vtk", &|p| {
+        let mut bytes = std::fs::read(p).unwrap();
+        bytes.extend_from_slice(b"\nDIMENSIONS 9 8 6\n");
+        std::fs::write(p, bytes).unwrap();
+    });
+    assert!(
+        matches!(&e, FormatError::BadLine { reason, .. } if reason.contains("DIMENSIONS")),
         "{e}"
     );
     let e = vtk("points_v51_ascii.vtk", &|p| {

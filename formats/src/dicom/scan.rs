@@ -103,6 +103,21 @@ struct Header {
     size: usize,
     /// Whether a defined-length value is a sequence of items.
     sequence: bool,
+    /// The size of one value of a binary VR (2 for US, 4 for UL, 8 for FD, ...), 1 for the
+    /// others: dicom-rs reads `len / unit` values and counts `len` bytes, so a length that is
+    /// not a multiple leaves the stream behind its count and the next header is read from
+    /// inside this value (any length at all, reserved before it is read).
+    unit: u32,
+}
+
+/// Size of one value of a VR read as numbers (PS3.5 Table 6.2-1), 1 for the others.
+fn vr_unit(vr: [u8; 2]) -> u32 {
+    match &vr {
+        b"US" | b"SS" | b"OW" => 2,
+        b"UL" | b"SL" | b"FL" | b"OF" | b"OL" | b"AT" => 4,
+        b"FD" | b"OD" | b"SV" | b"UV" | b"OV" => 8,
+        _ => 1,
+    }
 }
 
 struct Walker<'a> {
@@ -203,17 +218,19 @@ impl Walker<'_> {
                 len: self.u32(p + 4),
                 size: 8,
                 sequence: false,
+                unit: 1,
             });
         }
         if !self.enc.explicit_vr {
-            let sequence = StandardDataDictionary
-                .by_tag(tag)
-                .is_some_and(|e| e.vr().relaxed() == VR::SQ);
+            // dicom-rs takes an implicit VR from the standard dictionary (UN if unknown).
+            let vr = StandardDataDictionary.by_tag(tag).map(|e| e.vr().relaxed());
+            let unit = vr.map_or(1, |vr| vr_unit(vr.to_bytes()));
             return Ok(Header {
                 tag,
                 len: self.u32(p + 4),
                 size: 8,
-                sequence,
+                sequence: vr == Some(VR::SQ),
+                unit,
             });
         }
         let vr = [self.bytes[p + 4], self.bytes[p + 5]];
@@ -223,6 +240,7 @@ impl Walker<'_> {
                 len: u32::from(self.u16(p + 6)),
                 size: 8,
                 sequence: false,
+                unit: vr_unit(vr),
             });
         }
         if p + 12 > limit {
@@ -233,6 +251,7 @@ impl Walker<'_> {
             len: self.u32(p + 8),
             size: 12,
             sequence: &vr == b"SQ",
+            unit: vr_unit(vr),
         })
     }
 
@@ -338,6 +357,16 @@ impl Walker<'_> {
                     value: PixelValue::Native(start..end),
                 });
                 return Ok(end);
+            }
+            if h.len % h.unit != 0 {
+                return Err(err(
+                    p,
+                    format!(
+                        "element ({:04X},{:04X}) has {} bytes, not a multiple of {} (the size of \
+                         each value of its VR)",
+                        h.tag.0, h.tag.1, h.len, h.unit
+                    ),
+                ));
             }
             if h.sequence {
                 if depth >= MAX_DEPTH {
@@ -518,6 +547,38 @@ mod tests {
                 fragments: vec![f0..f0 + 6, f1..f1 + 2],
             }
         );
+    }
+
+    #[test]
+    fn binary_values_of_a_length_not_a_multiple_of_their_size_are_refused() {
+        // dicom-rs reads 6 of the 26 bytes of this UL as values and the next header from the
+        // last 2 (found by the fuzzer: a 6 kB file then claimed a 400 MB value).
+        let mut b = el(0x0008, 0x0016, *b"UL", &[b'1'; 26]);
+        b.extend(el(0x0010, 0x0010, *b"PN", b"AB"));
+        let e = walk_dataset(&b, Encoding::EXPLICIT_LE).unwrap_err();
+        assert_eq!(e.offset, 0);
+        assert!(
+            e.reason
+                .contains("(0008,0016) has 26 bytes, not a multiple of 4"),
+            "{e:?}"
+        );
+        // Implicit VR: the dictionary's (Rows is US).
+        let mut i = Vec::new();
+        i.extend(0x0028u16.to_le_bytes());
+        i.extend(0x0010u16.to_le_bytes());
+        i.extend(3u32.to_le_bytes());
+        i.extend([0; 3]);
+        let implicit = Encoding {
+            explicit_vr: false,
+            big_endian: false,
+        };
+        let e = walk_dataset(&i, implicit).unwrap_err();
+        assert!(e.reason.contains("not a multiple of 2"), "{e:?}");
+        // Multiples, and strings of any length, pass.
+        let mut ok = el(0x0008, 0x0016, *b"UL", &[0; 8]);
+        ok.extend(el(0x0010, 0x0010, *b"PN", b"ABC"));
+        ok.extend(el(0x0018, 0x0050, *b"FD", &[0; 16]));
+        assert!(walk_dataset(&ok, Encoding::EXPLICIT_LE).is_ok());
     }
 
     #[test]

@@ -75,6 +75,17 @@ fn walk<'a>(path: &'a Path, data: &'a [u8]) -> Result<Parsed<'a>, MeshError> {
                 out.dataset = kind;
             }
             "DIMENSIONS" => {
+                // One grid per file: the point data is checked against the DIMENSIONS before
+                // it, which a later one would contradict.
+                if let Some((_, first)) = out.dims {
+                    return Err(p.c.err_at(
+                        line.start,
+                        format!(
+                            "a second DIMENSIONS line (the first is on line {})",
+                            crate::mesh::text::newlines(&data[..first.min(data.len())]) + 1
+                        ),
+                    ));
+                }
                 let mut d = [0usize; 3];
                 for (i, x) in d.iter_mut().enumerate() {
                     *x = p.count_word(&line, i + 1, "DIMENSIONS", 0)?;
