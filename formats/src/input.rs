@@ -101,6 +101,17 @@ fn record(path: &Path, meta: Option<&Metadata>) {
     }
 }
 
+/// A file named inside the header at `header_path` (a detached data file): absolute names as
+/// they are, relative ones beside the header.
+pub(crate) fn beside(header_path: &Path, name: &str) -> PathBuf {
+    let p = Path::new(name);
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        header_path.parent().unwrap_or(Path::new("")).join(p)
+    }
+}
+
 /// Records `path` as an input that will be read later (a time step, a detached data file), so
 /// that no output replaces it in the meantime.
 pub fn note_input(path: &Path) {

@@ -131,14 +131,7 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> 
             return dicom::open_files(&files, path, pick);
         }
         if tiff::is_slice_stack(&files)? {
-            refuse_unused(
-                &files[0],
-                &OpenOptions {
-                    spacing: None,
-                    ..options.clone()
-                },
-                false,
-            )?;
+            refuse_unused(&files[0], &spacing_used(options), false)?;
             for f in &files {
                 input::note_input(f);
             }
@@ -147,6 +140,14 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatError> 
         return series::open_file_series(path, options).map(Dataset::Series);
     }
     open_file(path, options)
+}
+
+/// `options` less the spacing, which TIFF stacks and raw files use.
+fn spacing_used(options: &OpenOptions) -> OpenOptions {
+    OpenOptions {
+        spacing: None,
+        ..options.clone()
+    }
 }
 
 /// `options` less the series choice, which DICOM inputs use.
@@ -228,25 +229,11 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         return vtk_image::read(path, options.field.as_deref()).map(Dataset::Volume);
     }
     if tiff::is_tiff_path(path) {
-        refuse_unused(
-            path,
-            &OpenOptions {
-                spacing: None,
-                ..options.clone()
-            },
-            false,
-        )?;
+        refuse_unused(path, &spacing_used(options), false)?;
         return tiff::read_tiff(path, options);
     }
     if let Some(layout) = &options.raw {
-        refuse_unused(
-            path,
-            &OpenOptions {
-                spacing: None,
-                ..options.clone()
-            },
-            false,
-        )?;
+        refuse_unused(path, &spacing_used(options), false)?;
         return raw::read_raw(path, layout).map(Dataset::Volume);
     }
     if dicom::is_dicom_input(path) {
@@ -285,14 +272,7 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         .iter()
         .any(|m| magic.starts_with(m))
     {
-        refuse_unused(
-            path,
-            &OpenOptions {
-                spacing: None,
-                ..options.clone()
-            },
-            false,
-        )?;
+        refuse_unused(path, &spacing_used(options), false)?;
         return tiff::read_tiff(path, options);
     }
     Err(FormatError::UnknownFormat {

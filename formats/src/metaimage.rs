@@ -34,15 +34,14 @@
 
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 use glam::DVec3;
-use volume_core::series::TimeSeries;
-use volume_core::{RectilinearVolume, VoxelType, WorldFrame};
+
+use volume_core::{VoxelType, WorldFrame};
 
 use crate::Dataset;
 use crate::error::FormatError;
-use crate::nrrd::{DataPlan, Encoding, NrrdSteps, PlanParts, VolumeLayout};
+use crate::nrrd::{DataPlan, Encoding, PlanParts, VolumeLayout};
 use crate::oriented::{checked_dims, image_grid};
 use crate::raw::Endian;
 
@@ -559,15 +558,7 @@ pub fn read_header(path: &Path) -> Result<MetaHeader, FormatError> {
 
 /// The data files of a header at `path`, in order.
 pub fn data_file_paths(header: &MetaHeader, path: &Path) -> Vec<PathBuf> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let resolve = |name: &str| {
-        let p = Path::new(name);
-        if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            dir.join(p)
-        }
-    };
+    let resolve = |name: &str| crate::input::beside(path, name);
     match &header.data_file {
         DataFile::Local => vec![path.to_path_buf()],
         DataFile::File(name) => vec![resolve(name)],
@@ -616,19 +607,7 @@ pub fn world_frame(header: &MetaHeader, axis_dirs: [DVec3; 3]) -> WorldFrame {
 pub fn read_metaimage(path: &Path) -> Result<Dataset, FormatError> {
     let header = read_header(path)?;
     let (plan, layout, step_bytes) = plan(path, &header)?;
-    let plan = Arc::new(plan);
-    if layout.steps == 1 {
-        let data = plan.load(0, step_bytes)?;
-        let volume = RectilinearVolume::new(layout.grid, data)
-            .map_err(|e| FormatError::geometry(path, e))?;
-        return Ok(Dataset::Volume(volume));
-    }
-    let loader = NrrdSteps::new(path, plan, layout, step_bytes, "MetaImage")?;
-    let series = TimeSeries::open(Arc::new(loader)).map_err(|e| FormatError::Series {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    Ok(Dataset::Series(series))
+    crate::nrrd::planned_dataset(path, plan, layout, step_bytes, "MetaImage")
 }
 
 /// The geometry, the data plan and the bytes per step of a parsed header.

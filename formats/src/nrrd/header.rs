@@ -1006,15 +1006,7 @@ pub fn format_printf(format: &str, n: i64) -> String {
 
 /// Resolves the data file names of a detached header relative to the header's directory.
 pub fn data_file_paths(header: &NrrdHeader, header_path: &Path) -> Vec<PathBuf> {
-    let dir = header_path.parent().unwrap_or(Path::new(""));
-    let resolve = |name: &str| {
-        let p = Path::new(name);
-        if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            dir.join(p)
-        }
-    };
+    let resolve = |name: &str| crate::input::beside(header_path, name);
     match &header.data_files {
         DataFiles::Attached => vec![header_path.to_path_buf()],
         DataFiles::Single(name) => vec![resolve(name)],

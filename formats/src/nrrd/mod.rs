@@ -20,7 +20,6 @@ mod write;
 
 use std::io::Read;
 use std::path::Path;
-use std::sync::Arc;
 
 pub(crate) use data::{DataPlan, PlanParts};
 pub use geometry::VolumeLayout;
@@ -28,10 +27,8 @@ pub use header::{
     Center, DataFiles, Encoding, MAX_HEADER_BYTES, NrrdHeader, parse_header, parse_header_at,
 };
 pub use steps::NrrdSteps;
+pub(crate) use steps::dataset as planned_dataset;
 pub use write::{NrrdEncoding, write_nrrd, write_nrrd_detached};
-
-use volume_core::RectilinearVolume;
-use volume_core::series::TimeSeries;
 
 use crate::Dataset;
 use crate::error::FormatError;
@@ -74,18 +71,7 @@ pub fn read_header(path: &Path) -> Result<NrrdHeader, FormatError> {
 pub fn read_nrrd(path: &Path) -> Result<Dataset, FormatError> {
     let header = read_header(path)?;
     let layout = header.volume_layout(path)?;
-    let plan = Arc::new(DataPlan::new(&header, path));
+    let plan = DataPlan::new(&header, path);
     let step_bytes = (layout.grid.voxel_count() * header.voxel_type.size_bytes()) as u64;
-    if layout.steps == 1 {
-        let data = plan.load(0, step_bytes)?;
-        let volume = RectilinearVolume::new(layout.grid, data)
-            .map_err(|e| FormatError::geometry(path, e))?;
-        return Ok(Dataset::Volume(volume));
-    }
-    let loader = NrrdSteps::new(path, plan, layout, step_bytes, "NRRD")?;
-    let series = TimeSeries::open(Arc::new(loader)).map_err(|e| FormatError::Series {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    Ok(Dataset::Series(series))
+    steps::dataset(path, plan, layout, step_bytes, "NRRD")
 }

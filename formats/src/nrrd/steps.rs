@@ -12,6 +12,31 @@ use super::{DataPlan, VolumeLayout};
 use crate::FirstStep;
 use crate::error::FormatError;
 
+/// The dataset a planned file holds: the volume when `layout` has one step, else the lazily
+/// loaded time series of its steps (`format` names it in the series' description).
+pub(crate) fn dataset(
+    path: &Path,
+    plan: DataPlan,
+    layout: VolumeLayout,
+    step_bytes: u64,
+    format: &'static str,
+) -> Result<crate::Dataset, FormatError> {
+    if layout.steps == 1 {
+        let data = plan.load(0, step_bytes)?;
+        let volume = RectilinearVolume::new(layout.grid, data)
+            .map_err(|e| FormatError::geometry(path, e))?;
+        return Ok(crate::Dataset::Volume(volume));
+    }
+    let loader = NrrdSteps::new(path, Arc::new(plan), layout, step_bytes, format)?;
+    let series = volume_core::series::TimeSeries::open(Arc::new(loader)).map_err(|e| {
+        FormatError::Series {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        }
+    })?;
+    Ok(crate::Dataset::Series(series))
+}
+
 /// The steps of a 4D NRRD or MetaImage.
 pub struct NrrdSteps {
     path: PathBuf,
