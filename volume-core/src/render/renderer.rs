@@ -844,8 +844,11 @@ mod tests {
         let off = render(&scene, &cam, &settings, &go()).unwrap();
         settings.shadows = true;
         let on = render(&scene, &cam, &settings, &go()).unwrap();
-        // Centre pixel: p = (0, 0, 1), n = +z, shadowed -> ambient only.
-        let shadowed: Vec<u8> = color.iter().map(|c| to_u8(c * light.ambient)).collect();
+        // Centre pixel: p = (0, 0, 1), n = +z = V, shadowed -> ambient and the eye's fill.
+        let shadowed: Vec<u8> = color
+            .iter()
+            .map(|c| to_u8(c * (light.ambient + light.fill)))
+            .collect();
         assert_eq!(&pixel(&on, 32, 32)[..3], &shadowed[..]);
         let c = pixel(&off, 32, 32);
         assert!(c[0] > shadowed[0] + 50, "unshadowed {c:?}");
@@ -859,6 +862,47 @@ mod tests {
             .filter(|&p| on.rgba8[4 * p..4 * p + 4] == off.rgba8[4 * p..4 * p + 4])
             .count();
         assert!(same > 65 * 65 * 9 / 10, "{same}");
+    }
+
+    #[test]
+    fn back_lit_surfaces_get_the_eye_fill_light() {
+        // A unit sphere lit from straight behind: the key light reaches none of what the
+        // camera sees, so the centre pixel (n = V = +z) is ambient plus the full fill.
+        let scene = SphereScene {
+            spheres: vec![(Vec3::ZERO, 1.0)],
+            bounds: cube(3.0),
+        };
+        let light = Light {
+            kind: LightKind::Directional { dir: -Vec3::Z },
+            ..Light::default()
+        };
+        let color = [0.6, 0.6, 0.6];
+        let settings = RenderSettings {
+            width: 65,
+            height: 65,
+            surfaces: vec![Surface::new(0.0, color)],
+            light,
+            ..RenderSettings::default()
+        };
+        let cam = cam_z(6.0);
+        let frame = render(&scene, &cam, &settings, &go()).unwrap();
+        let filled: Vec<u8> = color
+            .iter()
+            .map(|c| to_u8(c * (light.ambient + light.fill)))
+            .collect();
+        assert_eq!(&pixel(&frame, 32, 32)[..3], &filled[..]);
+        assert!(filled[0] > to_u8(color[0] * light.ambient) + 40);
+        // The headlight is its own fill: its pictures do not change with `fill`.
+        let head = |fill| RenderSettings {
+            light: Light {
+                fill,
+                ..Light::default()
+            },
+            ..settings.clone()
+        };
+        let a = render(&scene, &cam, &head(0.0), &go()).unwrap();
+        let b = render(&scene, &cam, &head(0.9), &go()).unwrap();
+        assert_eq!(a.rgba8, b.rgba8);
     }
 
     #[test]

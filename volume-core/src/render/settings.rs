@@ -78,6 +78,16 @@ pub struct Light {
     /// White specular highlight strength.
     pub specular: f32,
     pub shininess: f32,
+    /// A fill light at the eye for a directional or point key light (the headlight is its own
+    /// fill): `fill · n·V` more diffuse light, casting no shadows, so that a surface the key
+    /// light leaves in its back is shaded by its shape, not flat ambient black (the fill of
+    /// ParaView's light kit).
+    #[serde(default = "default_fill")]
+    pub fill: f32,
+}
+
+fn default_fill() -> f32 {
+    Light::default().fill
 }
 
 impl Default for Light {
@@ -88,6 +98,7 @@ impl Default for Light {
             diffuse: 0.75,
             specular: 0.25,
             shininess: 40.0,
+            fill: 0.3,
         }
     }
 }
@@ -239,12 +250,12 @@ impl RenderSettings {
             }
         }
         let l = &self.light;
-        if ![l.ambient, l.diffuse, l.specular, l.shininess]
+        if ![l.ambient, l.diffuse, l.specular, l.shininess, l.fill]
             .iter()
             .all(|x| x.is_finite() && *x >= 0.0)
         {
             return Err(SettingsError::Light(
-                "ambient, diffuse, specular and shininess must be finite and >= 0".into(),
+                "ambient, diffuse, specular, shininess and fill must be finite and >= 0".into(),
             ));
         }
         if !unit_color(self.background) {

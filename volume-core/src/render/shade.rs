@@ -1,4 +1,5 @@
-//! Two-sided Blinn–Phong shading with one light.
+//! Two-sided Blinn–Phong shading with one light, and a shadowless fill light at the eye when
+//! the key light is not the headlight.
 //!
 //! Normals come from the scene (central differences in world space for grids, thesis
 //! seed 004 §6.4; isopolygon planes for tets, §8.2). Shading is two-sided: the normal is
@@ -71,6 +72,10 @@ impl Shader {
     ) -> Vec3 {
         let l = &self.light;
         let diffuse = Self::lambert(n, to_light) * lit;
+        let fill = match l.kind {
+            LightKind::Headlight => 0.0,
+            _ => l.fill * Self::lambert(n, -ray_dir),
+        };
         // No `powf` when the specular term is off (`0 · x` is `+0` for the finite `x` here).
         let specular = if diffuse > 0.0 && l.specular != 0.0 {
             let h = (to_light - ray_dir).try_normalize().unwrap_or(n);
@@ -78,7 +83,7 @@ impl Shader {
         } else {
             0.0
         };
-        (color * (l.ambient + l.diffuse * diffuse) + Vec3::splat(l.specular * specular))
+        (color * (l.ambient + fill + l.diffuse * diffuse) + Vec3::splat(l.specular * specular))
             .clamp(Vec3::ZERO, Vec3::ONE)
     }
 }
