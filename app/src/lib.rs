@@ -9,6 +9,8 @@
 //! - [`progress`]: indicatif bars that show only for long jobs on a terminal.
 //! - [`scene`]: [`scene::open_scene`] opens grids, tet meshes and `.isot` files as one
 //!   [`scene::AnyScene`] that the CLI and the viewer render through the same call.
+//! - [`values`]: data values printed the way their type reads (integers as integers, `f32`
+//!   as the shortest decimal that reads back).
 //! - [`ui`]: the viewer (`isoscope` with no subcommand): [`ui::app::ViewerApp`], its state,
 //!   background jobs, commands, panels and the backend link.
 
@@ -17,3 +19,4 @@ pub mod output;
 pub mod progress;
 pub mod scene;
 pub mod ui;
+pub mod values;

@@ -3,11 +3,18 @@
 
 use clap::Parser;
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
     let cli = isoscope::cli::Cli::parse();
-    match cli.command {
+    let result = match cli.command {
         Some(command) => isoscope::cli::run(command),
         None => run_viewer(cli.files),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("Error: {}", isoscope::cli::error_text(&e));
+            std::process::ExitCode::FAILURE
+        }
     }
 }
 

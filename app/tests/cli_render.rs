@@ -186,6 +186,154 @@ fn render_errors_are_clear() {
     assert!(!out.exists());
 }
 
+/// Flags meant for another kind of file are errors, messages say each thing once, an
+/// isovalue outside the data draws an empty picture with a warning, and `-o` writes what its
+/// extension names.
+#[test]
+fn render_refuses_foreign_flags_and_writes_what_the_name_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let out = dir.path().join("o.png");
+    // A header gives the layout: --dims/--type are not silently ignored.
+    let e = fails(&[
+        "render",
+        s(&vol),
+        "--dims",
+        "41x41x41",
+        "--type",
+        "f32",
+        "--endian",
+        "little",
+        "-o",
+        s(&out),
+    ]);
+    assert!(e.contains("sphere.nrrd") && e.contains("own layout"), "{e}");
+    let e = fails(&["render", s(&vol), "--dims", "41x41x41", "-o", s(&out)]);
+    assert!(e.contains("--type") && e.contains("NRRD"), "{e}");
+    // A mesh has no cell intersector.
+    let mesh = dir.path().join("ball.vtu");
+    ok(&["generate", "tet-ball", "--tets", "500", "-o", s(&mesh)]);
+    let e = fails(&["render", s(&mesh), "--intersector", "linear", "-o", s(&out)]);
+    assert!(
+        e.contains("--intersector linear") && e.contains("ball.vtu"),
+        "{e}"
+    );
+    // Arrays are listed as names, not as a Rust debug list.
+    let e = fails(&["render", s(&mesh), "--field", "zzz", "-o", s(&out)]);
+    assert!(
+        e.contains("available: distance, gaussians, moving_gaussian") && !e.contains('['),
+        "{e}"
+    );
+    // A missing file is reported once.
+    let missing = dir.path().join("missing.nrrd");
+    let e = fails(&["render", s(&missing), "-o", s(&out)]);
+    assert_eq!(e.matches("No such file or directory").count(), 1, "{e}");
+    assert!(!out.exists());
+
+    // An isovalue beyond the data: a warning, and every pixel misses (the depth says so).
+    let depth = dir.path().join("d.npy");
+    let run = common::isoscope(&[
+        "render",
+        s(&vol),
+        "--iso",
+        "1e9",
+        "--size",
+        "24x16",
+        "-o",
+        s(&out),
+        "--depth-out",
+        s(&depth),
+    ]);
+    let e = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.success() && e.contains("outside the data's value range"),
+        "{e}"
+    );
+    assert!(read_depth(&depth).iter().all(|d| d.is_infinite()));
+
+    // JPEG by name: JPEG bytes, decoding to the PNG's picture within JPEG's error.
+    let png = dir.path().join("a.png");
+    let jpg = dir.path().join("a.JPG");
+    ok(&["render", s(&vol), "--size", "64x48", "-o", s(&png)]);
+    ok(&["render", s(&vol), "--size", "64x48", "-o", s(&jpg)]);
+    let bytes = std::fs::read(&jpg).unwrap();
+    assert_eq!(&bytes[..3], &[0xFF, 0xD8, 0xFF]);
+    let a = image::open(&png).unwrap().to_rgb8();
+    let b = image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg)
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(a.dimensions(), b.dimensions());
+    let mean_error = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| f64::from(x.abs_diff(*y)))
+        .sum::<f64>()
+        / a.as_raw().len() as f64;
+    assert!(mean_error < 3.0, "{mean_error}");
+    // Any other extension is refused before rendering, and nothing is written.
+    let bmp = dir.path().join("a.bmp");
+    let e = fails(&["render", s(&vol), "-o", s(&bmp)]);
+    assert!(e.contains("a.bmp") && e.contains(".jpg"), "{e}");
+    assert!(!bmp.exists());
+}
+
+/// `info` prints values the way their type reads: integers without decimals, `f32` values
+/// that read back as the same `f32`, tiny values in exponent notation.
+#[test]
+fn info_prints_values_as_their_type_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    // A raw f32 file of tiny and ordinary values.
+    let values: [f32; 8] = [
+        3.673_669_7e-22,
+        0.8,
+        1.5e-21,
+        2.0e-22,
+        1.0e-21,
+        0.25,
+        0.5,
+        0.75,
+    ];
+    let raw = dir.path().join("tiny.raw");
+    std::fs::write(&raw, bytemuck::cast_slice::<f32, u8>(&values)).unwrap();
+    let text = ok(&[
+        "info",
+        s(&raw),
+        "--dims",
+        "2x2x2",
+        "--type",
+        "f32",
+        "--endian",
+        "little",
+    ]);
+    let range = text
+        .lines()
+        .find_map(|l| l.strip_prefix("value range:"))
+        .unwrap();
+    let mut ends = range.split_whitespace();
+    let lo: f32 = ends.next().unwrap().parse().unwrap();
+    assert_eq!(ends.next(), Some(".."));
+    let hi: f32 = ends.next().unwrap().parse().unwrap();
+    assert_eq!((lo, hi), (2.0e-22, 0.8));
+    assert!(range.len() < 40, "{range}");
+    // Integer data: the range and histogram edges are whole numbers.
+    let phantom =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-samples/samples/phantom64_i16.nrrd");
+    let text = ok(&["info", s(&phantom)]);
+    let range = text
+        .lines()
+        .find_map(|l| l.strip_prefix("value range:"))
+        .unwrap();
+    assert!(!range.replace("..", "").contains('.'), "{range}");
+    let edges: Vec<&str> = text
+        .lines()
+        .filter(|l| l.contains(" | "))
+        .map(|l| l.split(" | ").next().unwrap().trim())
+        .collect();
+    assert_eq!(edges.len(), 64);
+    assert!(edges.iter().all(|e| e.parse::<i64>().is_ok()), "{edges:?}");
+}
+
 #[test]
 fn bench_json_has_the_documented_fields() {
     let dir = tempfile::tempdir().unwrap();

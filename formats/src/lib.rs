@@ -161,6 +161,15 @@ fn dicom_options(options: &OpenOptions) -> OpenOptions {
 /// Refuses the options a self-describing format has no use for (a flag that would otherwise
 /// be ignored silently).
 fn refuse_unused(path: &Path, options: &OpenOptions, field: bool) -> Result<(), FormatError> {
+    if options.raw.is_some() {
+        return Err(FormatError::Unsupported {
+            path: path.to_path_buf(),
+            field: "--dims/--type".into(),
+            reason: "the file records its own layout (the raw-layout flags --dims, --type, \
+                     --endian, --header-bytes and --origin describe headerless raw files)"
+                .into(),
+        });
+    }
     if let Some(series) = &options.dicom_series {
         return Err(FormatError::Unsupported {
             path: path.to_path_buf(),
@@ -233,7 +242,11 @@ pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Dataset, FormatEr
         return tiff::read_tiff(path, options);
     }
     if let Some(layout) = &options.raw {
-        refuse_unused(path, &spacing_used(options), false)?;
+        let used = OpenOptions {
+            raw: None,
+            ..spacing_used(options)
+        };
+        refuse_unused(path, &used, false)?;
         return raw::read_raw(path, layout).map(Dataset::Volume);
     }
     if dicom::is_dicom_input(path) {
@@ -309,6 +322,37 @@ mod tests {
     use crate::nrrd::{NrrdEncoding, write_nrrd};
     use crate::output::Replace;
     use volume_core::Grid;
+
+    #[test]
+    fn raw_layout_options_are_refused_by_files_with_a_header() {
+        let dir = tempfile::tempdir().unwrap();
+        let g = Grid::uniform([2, 2, 2], [0.0; 3], [1.0; 3]).unwrap();
+        let v = RectilinearVolume::new(g, (0u8..8).collect::<Vec<_>>().into()).unwrap();
+        let p = dir.path().join("a.nrrd");
+        write_nrrd(&p, &v, NrrdEncoding::Raw, Replace::Refuse).unwrap();
+        let layout = raw::RawLayout {
+            dims: [2, 2, 2],
+            voxel_type: volume_core::VoxelType::U8,
+            endian: raw::Endian::Little,
+            header_bytes: 0,
+            spacing: [1.0; 3],
+            origin: [0.0; 3],
+        };
+        let options = OpenOptions {
+            raw: Some(layout.clone()),
+            ..OpenOptions::default()
+        };
+        let e = open(&p, &options).unwrap_err();
+        assert!(
+            matches!(&e, FormatError::Unsupported { field, .. } if field == "--dims/--type"),
+            "{e}"
+        );
+        // The same flags read a headerless file.
+        let r = dir.path().join("a.raw");
+        std::fs::write(&r, (0u8..8).collect::<Vec<_>>()).unwrap();
+        let read = open(&r, &options).unwrap();
+        assert_eq!(read.first_volume().value_f64(1, 1, 1), 7.0);
+    }
 
     #[test]
     fn open_dispatches_on_name_sidecar_and_content() {

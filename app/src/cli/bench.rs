@@ -74,8 +74,8 @@ pub struct Args {
     #[arg(long, value_name = "T")]
     pub threads: Option<usize>,
     /// Intersector of the kd-tree and DDA configurations (volumes and .isot files).
-    #[arg(long, value_name = "NAME", default_value = "exact", value_parser = parse_intersector)]
-    pub intersector: Intersector,
+    #[arg(long, value_name = "NAME", value_parser = parse_intersector)]
+    pub intersector: Option<Intersector>,
     /// Also print the speed/accuracy table for these intersectors: `all` or a comma list
     /// (linear,neubauer,exact,schwarze,reference). Volumes only.
     #[arg(long, value_name = "all|LIST", value_parser = parse_intersector_list)]
@@ -425,7 +425,7 @@ fn setup(args: &Args) -> anyhow::Result<Setup> {
         args.intersector,
     )?;
     let surfaces: Vec<Surface> = surfaces_for(&args.iso, &scene)?;
-    let camera = args.view.camera(&scene.world_bounds())?;
+    let camera = args.view.camera(&scene.world_bounds(), args.size)?;
     let mut settings = RenderSettings {
         width: args.size[0],
         height: args.size[1],
@@ -496,7 +496,7 @@ fn base_report(args: &Args, s: &Setup) -> BenchReport {
         height: args.size[1],
         frames: args.frames,
         threads: rayon::current_num_threads(),
-        intersector: args.intersector.to_string(),
+        intersector: args.intersector.unwrap_or_default().to_string(),
         build_seconds: s.scene.build_time().as_secs_f64(),
         tree_bytes: s.scene.structure_bytes(),
         data_bytes: 0,

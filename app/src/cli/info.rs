@@ -20,6 +20,7 @@ use volume_core::{AxisCoords, RectilinearVolume, VoxelType};
 use super::open_args::OpenArgs;
 use crate::progress::Progress;
 use crate::scene::{SceneKind, detect_kind};
+use crate::values::ValueFormat;
 
 /// Number of histogram bins.
 pub const HISTOGRAM_BINS: usize = 64;
@@ -329,6 +330,12 @@ fn fmt3(v: [f64; 3]) -> String {
     format!("{}, {}, {}", v[0], v[1], v[2])
 }
 
+/// Mesh points are `f32`: printed as they read.
+fn fmt3_f32(v: [f64; 3]) -> String {
+    let f = ValueFormat::F32;
+    format!("{}, {}, {}", f.value(v[0]), f.value(v[1]), f.value(v[2]))
+}
+
 fn human_bytes(bytes: u64) -> String {
     const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
     let mut x = bytes as f64;
@@ -435,9 +442,15 @@ pub fn render_text(r: &InfoReport) -> String {
             m.slope, m.intercept, r.voxel_type
         );
     }
+    let values = ValueFormat::of(r.voxel_type, r.value_map.as_ref());
     match r.value_range {
         Some([lo, hi]) => {
-            let _ = writeln!(out, "value range:  {lo} .. {hi}  (finite values)");
+            let _ = writeln!(
+                out,
+                "value range:  {} .. {}  (finite values)",
+                values.value(lo),
+                values.value(hi)
+            );
         }
         None => {
             let _ = writeln!(out, "value range:  none (no finite voxel)");
@@ -471,9 +484,9 @@ pub fn render_text(r: &InfoReport) -> String {
             "histogram:    {bins} bins over the value range (bar length ~ log(1 + count))"
         );
         for (b, &c) in h.counts.iter().enumerate() {
-            let lo = h.lo + b as f64 * width;
+            let lo = values.edge(h.lo + b as f64 * width, width);
             let bar = ((c as f64).ln_1p() / scale * 40.0).round() as usize;
-            let _ = writeln!(out, "  {:>12.4} | {:<40} {c}", lo, "#".repeat(bar));
+            let _ = writeln!(out, "  {lo:>12} | {:<40} {c}", "#".repeat(bar));
         }
     }
     out
@@ -697,8 +710,8 @@ pub fn render_mesh_text(r: &MeshInfoReport) -> String {
     let _ = writeln!(
         out,
         "bounds:       {} .. {}",
-        fmt3(r.bounds[0]),
-        fmt3(r.bounds[1])
+        fmt3_f32(r.bounds[0]),
+        fmt3_f32(r.bounds[1])
     );
     let _ = writeln!(
         out,
@@ -709,7 +722,10 @@ pub fn render_mesh_text(r: &MeshInfoReport) -> String {
     for a in &r.array_ranges {
         let range = a.value_range.map_or_else(
             || "no finite value".to_string(),
-            |[lo, hi]| format!("{lo} .. {hi}"),
+            |[lo, hi]| {
+                let f = ValueFormat::F32;
+                format!("{} .. {}", f.value(lo), f.value(hi))
+            },
         );
         let nan = if a.nan_count > 0 {
             format!("  ({} NaN)", a.nan_count)
@@ -768,9 +784,15 @@ pub fn render_isot_text(r: &IsotInfoReport) -> String {
             m.slope, m.intercept, r.voxel_type
         );
     }
+    let values = ValueFormat::of(r.voxel_type, r.value_map.as_ref());
     match r.value_range {
         Some([lo, hi]) => {
-            let _ = writeln!(out, "value range:  {lo} .. {hi}");
+            let _ = writeln!(
+                out,
+                "value range:  {} .. {}",
+                values.value(lo),
+                values.value(hi)
+            );
         }
         None => {
             let _ = writeln!(out, "value range:  none (no finite voxel)");

@@ -44,6 +44,24 @@ pub enum Command {
     Convert(convert::Args),
 }
 
+/// An error and its causes on one line, `top: cause: cause`, leaving out a cause whose text
+/// the line already holds (an I/O error that its file's error quotes), so that nothing is
+/// said twice. The CLI prints it after `Error: `.
+pub fn error_text(error: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in error.chain() {
+        let part = cause.to_string();
+        if text.contains(&part) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&part);
+    }
+    text
+}
+
 /// Runs a subcommand.
 pub fn run(command: Command) -> anyhow::Result<()> {
     match command {
@@ -54,5 +72,22 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Accuracy(a) => accuracy::run(&a),
         Command::Preprocess(a) => preprocess::run(&a),
         Command::Convert(a) => convert::run(&a),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_text_says_each_cause_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+        let quoted = anyhow::Error::new(io).context("nope.nrrd: No such file or directory");
+        assert_eq!(error_text(&quoted), "nope.nrrd: No such file or directory");
+        let chained = anyhow::anyhow!("no point field named \"zzz\"").context("mesh.vtu: --field");
+        assert_eq!(
+            error_text(&chained),
+            "mesh.vtu: --field: no point field named \"zzz\""
+        );
     }
 }

@@ -96,7 +96,11 @@ impl OpenArgs {
             });
         }
         let (Some(dims), Some(voxel_type)) = (self.dims, self.voxel_type) else {
-            bail!("raw files need both --dims and --type (e.g. --dims 256x256x108 --type i16)");
+            bail!(
+                "--dims and --type describe a headerless raw file and go together (e.g. \
+                 --dims 256x256x108 --type i16); files with a header (NRRD, NIfTI, MetaImage, \
+                 VTK, TIFF, DICOM) take neither"
+            );
         };
         let endian = match (self.endian, voxel_type.size_bytes()) {
             (Some(e), _) => e,
@@ -217,7 +221,7 @@ pub fn scene_options(
     mesh: &MeshArgs,
     ooc: &OocArgs,
     step: Option<usize>,
-    intersector: Intersector,
+    intersector: Option<Intersector>,
 ) -> anyhow::Result<SceneOptions> {
     let kind = detect_kind(file);
     let what = match kind {
@@ -228,6 +232,15 @@ pub fn scene_options(
     if kind != SceneKind::Tet && mesh.any() {
         bail!(
             "--bvh, --leaf-size, --packet and --normals apply to tetrahedral meshes; {} is {what}",
+            file.display()
+        );
+    }
+    if kind == SceneKind::Tet
+        && let Some(i) = intersector
+    {
+        bail!(
+            "--intersector {i} chooses the cell intersector of volumes and .isot files; {} is \
+             {what}, whose isosurface is the marching-tetrahedra isopolygons of each tet",
             file.display()
         );
     }
@@ -259,7 +272,7 @@ pub fn scene_options(
         open: open.open_options()?,
         step: step.unwrap_or(0),
         field: open.field.clone(),
-        intersector,
+        intersector: intersector.unwrap_or_default(),
         bvh: mesh.bvh_options()?,
         normals: mesh.normals.unwrap_or_default(),
         packet_rays: mesh.packet_rays(),
@@ -343,7 +356,7 @@ mod tests {
             &MeshArgs::default(),
             &OocArgs::default(),
             None,
-            Intersector::Exact,
+            None,
         )
         .unwrap_err();
         assert!(
@@ -444,7 +457,7 @@ mod tests {
             &mesh,
             &OocArgs::default(),
             None,
-            Intersector::Exact,
+            None,
         )
         .unwrap_err();
         assert!(e.to_string().contains("tetrahedral meshes"), "{e}");
@@ -458,7 +471,7 @@ mod tests {
             &MeshArgs::default(),
             &ooc,
             None,
-            Intersector::Exact,
+            None,
         )
         .unwrap_err();
         assert!(e.to_string().contains(".isot"), "{e}");
@@ -472,11 +485,32 @@ mod tests {
             },
             &OocArgs::default(),
             Some(3),
-            Intersector::Exact,
+            None,
         )
         .unwrap();
         assert_eq!(o.packet_rays, 4);
         assert_eq!(o.bvh.builder, BvhBuilder::Sah);
         assert_eq!(o.step, 3);
+        // A mesh has no cell intersector to choose; a volume takes any.
+        let e = scene_options(
+            Path::new("m.vtu"),
+            &OpenArgs::default(),
+            &MeshArgs::default(),
+            &OocArgs::default(),
+            None,
+            Some(Intersector::Linear),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("--intersector linear"), "{e}");
+        let o = scene_options(
+            Path::new("v.nrrd"),
+            &OpenArgs::default(),
+            &MeshArgs::default(),
+            &OocArgs::default(),
+            None,
+            Some(Intersector::Linear),
+        )
+        .unwrap();
+        assert_eq!(o.intersector, Intersector::Linear);
     }
 }

@@ -69,8 +69,9 @@ pub struct ViewArgs {
 }
 
 impl ViewArgs {
-    /// The camera: from the JSON file, or an orbit framing `bounds`; validated.
-    pub fn camera(&self, bounds: &Aabb) -> anyhow::Result<Camera> {
+    /// The camera: from the JSON file, or an orbit framing `bounds` tightly in an image of
+    /// `size` pixels; validated.
+    pub fn camera(&self, bounds: &Aabb, size: [u32; 2]) -> anyhow::Result<Camera> {
         let camera = if let Some(path) = &self.camera {
             load_camera(path)?
         } else {
@@ -78,7 +79,8 @@ impl ViewArgs {
                 bail!("--vfov {} must be between 0 and 180 degrees", self.vfov);
             }
             let [az, el] = self.orbit.unwrap_or([30.0, 20.0]);
-            Camera::orbit(bounds, az, el, self.vfov)
+            let aspect = size[0] as f32 / size[1].max(1) as f32;
+            Camera::orbit_framed(bounds, az, el, self.vfov, aspect)
         };
         camera.validate()?;
         Ok(camera)
@@ -116,8 +118,8 @@ pub struct Args {
     #[arg(long, value_name = "WxH", value_parser = parse_size, default_value = "800x600")]
     pub size: [u32; 2],
     /// Cell intersector: exact (default), linear, neubauer[:N], schwarze, reference.
-    #[arg(long, value_name = "NAME", default_value = "exact", value_parser = parse_intersector)]
-    pub intersector: Intersector,
+    #[arg(long, value_name = "NAME", value_parser = parse_intersector)]
+    pub intersector: Option<Intersector>,
     /// Cast shadow rays towards the light (default light: above left of the camera).
     #[arg(long)]
     pub shadows: bool,
@@ -139,7 +141,7 @@ pub struct Args {
     /// Time step of a series (volumes or meshes; default 0).
     #[arg(long, value_name = "N")]
     pub step: Option<usize>,
-    /// Output PNG.
+    /// Output image: PNG (`.png`) or JPEG (`.jpg`, `.jpeg`), by its extension.
     #[arg(short, long, value_name = "out.png")]
     pub output: PathBuf,
     /// Also write the first-hit distance per pixel: float32 .npy, shape (H, W), row 0 at the
@@ -172,6 +174,7 @@ pub fn surfaces_for(specs: &[IsoSpec], scene: &AnyScene) -> anyhow::Result<Vec<S
         };
         return Ok(vec![Surface::new(iso, PALETTE[0])]);
     }
+    warn_outside_range(specs, scene);
     Ok(specs
         .iter()
         .enumerate()
@@ -182,6 +185,36 @@ pub fn surfaces_for(specs: &[IsoSpec], scene: &AnyScene) -> anyhow::Result<Vec<S
             visible: true,
         })
         .collect())
+}
+
+/// Warns on stderr about each isovalue outside the range of the values drawn: its surface is
+/// empty, and an empty picture without a word looks like a broken renderer.
+fn warn_outside_range(specs: &[IsoSpec], scene: &AnyScene) {
+    let f = crate::values::ValueFormat::F32;
+    let step = if scene.step_count() > 1 {
+        format!(" at time step {}", scene.step())
+    } else {
+        String::new()
+    };
+    for s in specs {
+        let v = f64::from(s.value);
+        match scene.value_range() {
+            Some((lo, hi)) if v < lo || v > hi => eprintln!(
+                "warning: {}: isovalue {} is outside the data's value range {} .. {}{step}: \
+                 its surface is empty",
+                scene.path().display(),
+                f.value(v),
+                f.value(lo),
+                f.value(hi)
+            ),
+            None => eprintln!(
+                "warning: {}: no finite value{step}, so isovalue {} draws nothing",
+                scene.path().display(),
+                f.value(v)
+            ),
+            Some(_) => {}
+        }
+    }
 }
 
 /// A key light for `--shadows` without `--light-dir`: above, left and behind the camera.
@@ -213,7 +246,7 @@ pub fn render_grid(
 
 /// Writes `frame` as an RGBA PNG ([`crate::output`]).
 pub fn save_png(frame: &Frame, path: &Path, replace: Replace) -> anyhow::Result<()> {
-    crate::output::save_rgba_png(path, &frame.rgba8, frame.width, frame.height, replace)
+    crate::output::save_rgba_image(path, &frame.rgba8, frame.width, frame.height, replace)
 }
 
 /// `bytes` written to a temporary [`formats::output::OutputFile`] for `path`, to commit.
@@ -357,7 +390,7 @@ pub fn open_with_flags(
     mesh: &MeshArgs,
     ooc: &OocArgs,
     step: Option<usize>,
-    intersector: Intersector,
+    intersector: Option<Intersector>,
 ) -> anyhow::Result<AnyScene> {
     let options = scene_options(file, open, mesh, ooc, step, intersector)?;
     let scene = {
@@ -391,19 +424,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     for out in &outputs {
         formats::output::check_output(out, replace)?;
     }
+    let format = crate::output::ImageFormat::for_path(&args.output)?;
     let surfaces = surfaces_for(&args.iso, &scene)?;
-    let camera = args.view.camera(&scene.world_bounds())?;
+    let camera = args.view.camera(&scene.world_bounds(), args.size)?;
     let settings = settings_from(args, &camera, surfaces)?;
     let Rendered { frame, ooc_level } = render_scene(&scene, &camera, &settings, level_timeout)?;
     // Both outputs are complete before either is renamed into place: a failed depth map
     // leaves no image either.
-    let png = crate::output::png_bytes(
-        &frame.rgba8,
-        frame.width,
-        frame.height,
-        image::ExtendedColorType::Rgba8,
-    )?;
-    let mut written = vec![staged(&args.output, replace, &png)?];
+    let image = crate::output::rgba_image_bytes(&frame.rgba8, frame.width, frame.height, format)?;
+    let mut written = vec![staged(&args.output, replace, &image)?];
     if let Some(path) = &args.depth_out {
         let mut npy_bytes = Vec::new();
         npy::write_f32_2d(
@@ -421,7 +450,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let structure = match &scene {
         AnyScene::Grid(g) => format!(
             "{}; kd-tree built in {:.1} ms, {:.2}x data",
-            args.intersector,
+            args.intersector.unwrap_or_default(),
             scene.build_time().as_secs_f64() * 1e3,
             g.scene().memory_ratio()
         ),
@@ -438,7 +467,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let (level, count) = ooc_level.unwrap_or((0, 0));
             format!(
                 "{}; out-of-core level {level} of 0..{} ({}), {:.1} MiB resident",
-                args.intersector,
+                args.intersector.unwrap_or_default(),
                 count.saturating_sub(1),
                 if level + 1 == count {
                     "finest"
@@ -462,21 +491,35 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.stats {
         let c = frame.counts;
         let rays = c.rays.max(1) as f64;
-        eprintln!(
-            "rays traced {} (primary {}, transparency {}, shadow {}); per ray: {:.1} nodes, {:.1} leaves, {:.2} intersections",
-            c.rays,
-            frame.rays.primary,
-            frame.rays.transparency,
-            frame.rays.shadow,
-            c.nodes_visited as f64 / rays,
-            c.leaves_visited as f64 / rays,
-            c.intersection_tests as f64 / rays
+        let traced = format!(
+            "rays traced {} (primary {}, transparency {}, shadow {})",
+            c.rays, frame.rays.primary, frame.rays.transparency, frame.rays.shadow
         );
-        if scene.as_tet().is_some() {
-            eprintln!(
-                "per frame: {} ray-box tests, {} isopolygon tests, {} isopolygon extractions",
-                c.box_tests, c.intersection_tests, c.polygon_extractions
-            );
+        match scene.as_tet() {
+            // A packet visits a node once for all its rays: node and leaf visits per ray
+            // would read as a fraction of a leaf.
+            Some(t) => {
+                let side = packet_side(t.scene().packet_size());
+                eprintln!(
+                    "{traced}; per ray: {:.2} isopolygon tests",
+                    c.intersection_tests as f64 / rays
+                );
+                eprintln!(
+                    "per frame: {} node and {} leaf visits (packets of {side}x{side} rays), {} \
+                     ray-box tests, {} isopolygon tests, {} isopolygon extractions",
+                    c.nodes_visited,
+                    c.leaves_visited,
+                    c.box_tests,
+                    c.intersection_tests,
+                    c.polygon_extractions
+                );
+            }
+            None => eprintln!(
+                "{traced}; per ray: {:.1} nodes, {:.1} leaves, {:.2} intersections",
+                c.nodes_visited as f64 / rays,
+                c.leaves_visited as f64 / rays,
+                c.intersection_tests as f64 / rays
+            ),
         }
     }
     Ok(())

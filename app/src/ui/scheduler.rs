@@ -364,7 +364,7 @@ impl ViewerApp {
             if img.rgba8.len() != img.width as usize * img.height as usize * 4 {
                 return Err("the renderer returned a wrong-sized image".to_string());
             }
-            crate::output::save_rgba_png(
+            crate::output::save_rgba_image(
                 &path,
                 &img.rgba8,
                 img.width,

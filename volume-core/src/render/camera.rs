@@ -111,6 +111,67 @@ impl Camera {
         }
     }
 
+    /// [`Camera::orbit`] moved in as close as the view allows: every corner of `bounds`
+    /// projects inside an image of `aspect` = width / height with a 5 % margin, so the data
+    /// fills the frame from any direction (the bounding sphere of a box leaves the box a
+    /// third of the frame or less). For each corner `q` (from the centre) in the view basis
+    /// `(x, y, z)`, `z` towards the eye, its depth at eye distance `D` is `D − z`, and it is
+    /// in the frame when `|y| ≤ tan(vfov/2)·(D − z)/1.05` and `|x| ≤ aspect·tan(vfov/2)·(D −
+    /// z)/1.05`: `D` is the largest bound these give.
+    pub fn orbit_framed(
+        bounds: &Aabb,
+        azimuth_deg: f32,
+        elevation_deg: f32,
+        vfov_deg: f32,
+        aspect: f32,
+    ) -> Camera {
+        let sphere = Camera::orbit(bounds, azimuth_deg, elevation_deg, vfov_deg);
+        if bounds.is_empty()
+            || !bounds.extent().is_finite()
+            || !(aspect.is_finite() && aspect > 0.0)
+        {
+            return sphere;
+        }
+        let (right, up, forward) = sphere.basis();
+        let toward_eye = -forward;
+        let tan_v = (0.5 * sphere.vfov_deg.to_radians()).tan();
+        let tan_h = tan_v * aspect;
+        let centre = bounds.center();
+        let mut distance = 0.0f32;
+        let mut nearest = f32::NEG_INFINITY;
+        for i in 0..8 {
+            let corner = Vec3::new(
+                if i & 1 == 0 {
+                    bounds.min.x
+                } else {
+                    bounds.max.x
+                },
+                if i & 2 == 0 {
+                    bounds.min.y
+                } else {
+                    bounds.max.y
+                },
+                if i & 4 == 0 {
+                    bounds.min.z
+                } else {
+                    bounds.max.z
+                },
+            );
+            let q = corner - centre;
+            let (x, y, z) = (q.dot(right), q.dot(up), q.dot(toward_eye));
+            nearest = nearest.max(z);
+            distance = distance
+                .max(z + 1.05 * y.abs() / tan_v)
+                .max(z + 1.05 * x.abs() / tan_h);
+        }
+        // Never on the box: a flat box seen edge-on would otherwise put the eye on its edge.
+        let clearance = 1e-3 * bounds.extent().length().max(1e-6);
+        Camera {
+            eye: centre + toward_eye * distance.max(nearest + clearance),
+            ..sphere
+        }
+    }
+
     /// Checks that the camera defines an orthonormal view basis.
     pub fn validate(&self) -> Result<(), CameraError> {
         for (field, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
@@ -545,6 +606,46 @@ mod tests {
             cam.validate(),
             Err(CameraError::NotFinite { field: "eye", .. })
         ));
+    }
+
+    #[test]
+    fn orbit_framed_fits_the_corners_tightly() {
+        let b = Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 2.0, 4.0));
+        for aspect in [0.5f32, 1.0, 4.0 / 3.0, 3.0] {
+            for (az, el) in [(0.0, 0.0), (30.0, 20.0), (200.0, -60.0), (10.0, 90.0)] {
+                let cam = Camera::orbit_framed(&b, az, el, 40.0, aspect);
+                cam.validate().unwrap();
+                assert_eq!(cam.target, b.center());
+                let sphere = Camera::orbit(&b, az, el, 40.0);
+                // The sphere fits the vertical field of view only: closer in any image at
+                // least as wide as tall.
+                if aspect >= 1.0 {
+                    assert!(cam.eye.distance(cam.target) < sphere.eye.distance(sphere.target));
+                }
+                // Brute force: the largest projected corner coordinate over the frame's
+                // half-size is 1/1.05 (inside, with the margin, and touching it).
+                let (right, up, forward) = cam.basis();
+                let tan = (20.0f32).to_radians().tan();
+                let mut most = 0.0f32;
+                for c in 0..8 {
+                    let p = Vec3::new(
+                        if c & 1 == 0 { b.min.x } else { b.max.x },
+                        if c & 2 == 0 { b.min.y } else { b.max.y },
+                        if c & 4 == 0 { b.min.z } else { b.max.z },
+                    );
+                    let d = p - cam.eye;
+                    let z = d.dot(forward);
+                    assert!(z > 0.0);
+                    most = most
+                        .max((d.dot(up) / z).abs() / tan)
+                        .max((d.dot(right) / z).abs() / (tan * aspect));
+                }
+                assert!(
+                    (most - 1.0 / 1.05).abs() < 1e-3,
+                    "{aspect} {az} {el}: {most}"
+                );
+            }
+        }
     }
 
     #[test]

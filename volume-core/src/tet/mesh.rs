@@ -45,7 +45,7 @@ pub enum TetError {
     },
     #[error("field name \"{name}\" occurs twice")]
     DuplicateField { name: String },
-    #[error("no point field named \"{name}\" (available: {available:?})")]
+    #[error("no point field named \"{name}\" (available: {})", available.join(", "))]
     NoSuchField {
         name: String,
         available: Vec<String>,
