@@ -140,13 +140,22 @@ pub fn group_files(files: &[PathBuf]) -> FileGroup {
         return list("the file names do not differ only in a number");
     }
     let pattern = dir.unwrap_or(Path::new("")).join(format!("{pre}*{post}"));
-    // The pattern must match exactly the given files (not more siblings).
-    let given: BTreeSet<PathBuf> = files.iter().cloned().collect();
+    // The pattern must match exactly the given files (not more siblings). By name: the
+    // folder is the same, and a relative one comes back as `./name` from the listing.
+    let given: BTreeSet<&str> = names.iter().copied().collect();
     match formats::series::expand_pattern(&pattern) {
-        Ok(found) if found.iter().cloned().collect::<BTreeSet<_>>() == given => FileGroup::Series {
-            pattern,
-            steps: files.len(),
-        },
+        Ok(found)
+            if found
+                .iter()
+                .filter_map(|f| name_of(f))
+                .collect::<BTreeSet<_>>()
+                == given =>
+        {
+            FileGroup::Series {
+                pattern,
+                steps: files.len(),
+            }
+        }
         Ok(_) => list(&format!(
             "the folder holds other files matching {pre}*{post}; open that pattern to see them all"
         )),
