@@ -800,3 +800,104 @@ fn a_dicom_series_and_its_nifti_line_up_in_patient_space() {
     // The same voxels, not only the same geometry.
     assert_eq!(dcm.value_f64(1, 2, 3), nif.value_f64(1, 2, 3));
 }
+
+/// `movie`: an orbit's frames are `render` frames turned about z (frame 0 is the default
+/// view, the frame half a turn on is the orbit camera's opposite azimuth), a time series
+/// plays step by step like `render --step`, without ffmpeg a note says so, and old frames
+/// are replaced only with --force.
+#[test]
+fn movie_writes_orbit_and_time_series_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let frames = dir.path().join("orbit");
+    let no_ffmpeg = tempfile::tempdir().unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_isoscope"))
+        .args(["movie", s(&vol), "--frames", "4", "--size", "40x30", "-o"])
+        .arg(&frames)
+        .env("PATH", no_ffmpeg.path())
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{e}");
+    assert!(e.contains("ffmpeg is not on the PATH"), "{e}");
+    let frame = |k: usize| {
+        image::open(frames.join(format!("frame_{k:04}.png")))
+            .unwrap()
+            .to_rgba8()
+    };
+    for k in 0..4 {
+        assert_eq!(frame(k).dimensions(), (40, 30));
+    }
+    assert!(!frames.join("frame_0004.png").exists());
+    assert!(!frames.join("movie.mp4").exists());
+    let still = |orbit: &str, name: &str| {
+        let p = dir.path().join(name);
+        ok(&[
+            "render",
+            s(&vol),
+            "--size",
+            "40x30",
+            "--orbit",
+            orbit,
+            "-o",
+            s(&p),
+        ]);
+        image::open(&p).unwrap().to_rgba8()
+    };
+    assert_eq!(frame(0), still("30,20", "r0.png"));
+    // Half a turn: azimuth 210°. The cube's bounds frame alike from both sides; the eye
+    // differs by rounding only, so compare the mean pixel difference.
+    let (a, b) = (frame(2), still("210,20", "r2.png"));
+    let mean = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| f64::from(x.abs_diff(*y)))
+        .sum::<f64>()
+        / a.as_raw().len() as f64;
+    assert!(mean < 1.0, "{mean}");
+    assert_ne!(frame(0), frame(1));
+    // Again without --force: refused, naming the frame.
+    let e = fails(&["movie", s(&vol), "--frames", "4", "-o", s(&frames)]);
+    assert!(e.contains("frame_0000.png") && e.contains("--force"), "{e}");
+
+    // A time series: frame k is `render --step k`.
+    let samples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../data-samples/samples");
+    let pattern = samples.join("blobs24_%03d.nrrd");
+    let played = dir.path().join("played");
+    ok(&[
+        "movie",
+        s(&pattern),
+        "--time",
+        "--size",
+        "32x32",
+        "--iso",
+        "0.5",
+        "-o",
+        s(&played),
+    ]);
+    for k in 0..5 {
+        let p = dir.path().join(format!("step{k}.png"));
+        ok(&[
+            "render",
+            s(&pattern),
+            "--step",
+            &k.to_string(),
+            "--size",
+            "32x32",
+            "--iso",
+            "0.5",
+            "-o",
+            s(&p),
+        ]);
+        let step = image::open(&p).unwrap().to_rgba8();
+        let shown = image::open(played.join(format!("frame_{k:04}.png")))
+            .unwrap()
+            .to_rgba8();
+        assert_eq!(shown, step, "step {k}");
+    }
+    assert!(!played.join("frame_0005.png").exists());
+    let e = fails(&["movie", s(&vol), "--time", "-o", s(&played)]);
+    assert!(e.contains("one step"), "{e}");
+}

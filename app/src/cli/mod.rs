@@ -8,6 +8,7 @@ pub mod bench;
 pub mod convert;
 pub mod generate;
 pub mod info;
+pub mod movie;
 pub mod npy;
 pub mod open_args;
 pub mod preprocess;
@@ -29,8 +30,11 @@ pub enum Command {
     Info(info::Args),
     /// Write a synthetic dataset (Marschner-Lobb, sphere, torus, phantom, ...).
     Generate(generate::Args),
-    /// Ray trace isosurfaces to a PNG, headless.
+    /// Ray trace isosurfaces to a PNG or JPEG, headless.
     Render(render::Args),
+    /// An orbit around the data or a time series played through: numbered PNG frames, and
+    /// movie.mp4 when ffmpeg is on the PATH.
+    Movie(movie::Args),
     /// Measure build time, memory and rays/s of the acceleration structures and intersectors.
     Bench(bench::Args),
     /// Write docs/accuracy.md: speed and accuracy of every intersector against the f64
@@ -68,6 +72,7 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Info(a) => info::run(&a),
         Command::Generate(a) => generate::run(&a),
         Command::Render(a) => render::run(&a),
+        Command::Movie(a) => movie::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Accuracy(a) => accuracy::run(&a),
         Command::Preprocess(a) => preprocess::run(&a),

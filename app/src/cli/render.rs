@@ -99,10 +99,10 @@ pub fn load_camera(path: &Path) -> anyhow::Result<Camera> {
     Ok(camera)
 }
 
-/// Arguments of `isoscope render`.
+/// What to draw and how: the arguments `render` and `movie` share.
 #[allow(rustdoc::broken_intra_doc_links)] // clap help text: `[:N]` is shown as typed
 #[derive(Debug, clap::Args)]
-pub struct Args {
+pub struct SceneArgs {
     /// Volume file: .nrrd/.nhdr, .nii/.nii.gz, .hdr/.img (NIfTI pair, Analyze), a raw file (with
     /// the raw flags or a NAME.json sidecar), a time series pattern such as vol_%03d.nrrd; a
     /// tetrahedral mesh (.vtk, .vtu, .msh, .node/.ele, .pvd, or a pattern such as
@@ -141,6 +141,45 @@ pub struct Args {
     /// Time step of a series (volumes or meshes; default 0).
     #[arg(long, value_name = "N")]
     pub step: Option<usize>,
+    #[command(flatten)]
+    pub open: OpenArgs,
+    #[command(flatten)]
+    pub mesh: MeshArgs,
+    #[command(flatten)]
+    pub ooc: OocArgs,
+}
+
+impl SceneArgs {
+    /// Opens the file with these flags ([`open_with_flags`]).
+    pub fn open_scene(&self) -> anyhow::Result<AnyScene> {
+        open_with_flags(
+            &self.file,
+            &self.open,
+            &self.mesh,
+            &self.ooc,
+            self.step,
+            self.intersector,
+        )
+    }
+
+    /// The camera and render settings these flags give for `scene`.
+    pub fn view_of(
+        &self,
+        scene: &AnyScene,
+        collect_stats: bool,
+    ) -> anyhow::Result<(Camera, RenderSettings)> {
+        let surfaces = surfaces_for(&self.iso, scene)?;
+        let camera = self.view.camera(&scene.world_bounds(), self.size)?;
+        let settings = settings_from(self, &camera, surfaces, collect_stats)?;
+        Ok((camera, settings))
+    }
+}
+
+/// Arguments of `isoscope render`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Output image: PNG (`.png`) or JPEG (`.jpg`, `.jpeg`), by its extension.
     #[arg(short, long, value_name = "out.png")]
     pub output: PathBuf,
@@ -155,12 +194,6 @@ pub struct Args {
     /// isopolygon tests for meshes).
     #[arg(long)]
     pub stats: bool,
-    #[command(flatten)]
-    pub open: OpenArgs,
-    #[command(flatten)]
-    pub mesh: MeshArgs,
-    #[command(flatten)]
-    pub ooc: OocArgs,
 }
 
 /// Surfaces from `--iso` arguments, or one at the middle of the scene's value range.
@@ -264,9 +297,10 @@ fn staged(
 
 /// Builds the settings of `isoscope render` (validated).
 pub fn settings_from(
-    args: &Args,
+    args: &SceneArgs,
     camera: &Camera,
     surfaces: Vec<Surface>,
+    collect_stats: bool,
 ) -> anyhow::Result<RenderSettings> {
     let mut light = Light::default();
     if let Some(dir) = args.light_dir {
@@ -288,7 +322,7 @@ pub fn settings_from(
         shadows: args.shadows,
         light,
         background: args.background.unwrap_or(defaults.background),
-        collect_stats: args.stats,
+        collect_stats,
         ..defaults
     };
     if args.layers == 0 {
@@ -410,24 +444,16 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut outputs = vec![args.output.as_path()];
     outputs.extend(args.depth_out.as_deref());
     formats::output::check_distinct(&outputs)?;
-    let level_timeout = args.ooc.level_timeout()?;
-    let scene = open_with_flags(
-        &args.file,
-        &args.open,
-        &args.mesh,
-        &args.ooc,
-        args.step,
-        args.intersector,
-    )?;
+    let a = &args.scene;
+    let level_timeout = a.ooc.level_timeout()?;
+    let scene = a.open_scene()?;
     // Now that the opener has recorded every file the input reads, refuse outputs that are
     // one of them (or exist, without --force) before spending time on the render.
     for out in &outputs {
         formats::output::check_output(out, replace)?;
     }
     let format = crate::output::ImageFormat::for_path(&args.output)?;
-    let surfaces = surfaces_for(&args.iso, &scene)?;
-    let camera = args.view.camera(&scene.world_bounds(), args.size)?;
-    let settings = settings_from(args, &camera, surfaces)?;
+    let (camera, settings) = a.view_of(&scene, args.stats)?;
     let Rendered { frame, ooc_level } = render_scene(&scene, &camera, &settings, level_timeout)?;
     // Both outputs are complete before either is renamed into place: a failed depth map
     // leaves no image either.
@@ -450,7 +476,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let structure = match &scene {
         AnyScene::Grid(g) => format!(
             "{}; kd-tree built in {:.1} ms, {:.2}x data",
-            args.intersector.unwrap_or_default(),
+            a.intersector.unwrap_or_default(),
             scene.build_time().as_secs_f64() * 1e3,
             g.scene().memory_ratio()
         ),
@@ -467,7 +493,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             let (level, count) = ooc_level.unwrap_or((0, 0));
             format!(
                 "{}; out-of-core level {level} of 0..{} ({}), {:.1} MiB resident",
-                args.intersector.unwrap_or_default(),
+                a.intersector.unwrap_or_default(),
                 count.saturating_sub(1),
                 if level + 1 == count {
                     "finest"
