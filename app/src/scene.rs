@@ -165,6 +165,35 @@ impl Default for SceneOptions {
     }
 }
 
+/// What the data holds at one world position ([`AnyScene::probe`]): picking and
+/// `isoscope probe`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Probe {
+    /// The position probed, world units.
+    pub world: [f64; 3],
+    /// The interpolated value (trilinear in a voxel cell, linear in a tet), physical units.
+    pub value: f64,
+    /// The interpolant's gradient, value per world unit.
+    pub gradient_world: [f64; 3],
+    /// The unit normal of the level set through the position (the gradient's direction),
+    /// `null` where the gradient is zero.
+    pub normal: Option<[f64; 3]>,
+    pub location: ProbeLocation,
+}
+
+/// Where a probed position lies in the data.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum ProbeLocation {
+    /// A volume: the continuous voxel index (`i + fraction` per axis) and the nearest voxel.
+    Voxel {
+        index: [f64; 3],
+        nearest_voxel: [usize; 3],
+    },
+    /// A mesh: the tet holding the position and its barycentric coordinates.
+    Tet { tet: usize, barycentric: [f64; 4] },
+}
+
 /// A loaded scene of any kind (module docs).
 #[derive(Debug)]
 #[allow(clippy::large_enum_variant)] // one per open file; boxing would only add a pointer hop
@@ -469,6 +498,51 @@ impl AnyScene {
     /// array at the current step (meshes); `None` if nothing is finite.
     pub fn value_range(&self) -> Option<(f64, f64)> {
         self.data().value_range()
+    }
+
+    /// What the data holds at `world` (the current step and array): the interpolated value,
+    /// its gradient and where it lies (voxel index or tet); `None` outside the data. `.isot`
+    /// files are not probed (their finest voxels may not be resident): an error says so.
+    pub fn probe(&self, world: glam::DVec3) -> anyhow::Result<Option<Probe>> {
+        let (value, gradient, location) = match self {
+            AnyScene::Grid(g) => {
+                let Some(p) = g.volume().probe_world(world) else {
+                    return Ok(None);
+                };
+                let location = ProbeLocation::Voxel {
+                    index: p.index.to_array(),
+                    nearest_voxel: p.nearest_voxel,
+                };
+                (p.value, p.gradient_world, location)
+            }
+            AnyScene::Tet(t) => {
+                let Some(values) = t.field_values() else {
+                    bail!("{}: no point array to probe", t.path.display());
+                };
+                let points = t.scene().points();
+                let tets = &t.loaded().mesh.tets;
+                let Some(p) = volume_core::tet::probe_tets(&points, tets, values, world) else {
+                    return Ok(None);
+                };
+                let location = ProbeLocation::Tet {
+                    tet: p.tet,
+                    barycentric: p.barycentric,
+                };
+                (p.value, p.gradient_world, location)
+            }
+            AnyScene::Ooc(o) => bail!(
+                "{}: probing an .isot file is not supported (its finest voxels may not be in \
+                 memory): probe the volume it was made from",
+                o.path.display()
+            ),
+        };
+        Ok(Some(Probe {
+            world: world.to_array(),
+            value,
+            gradient_world: gradient.to_array(),
+            normal: gradient.try_normalize().map(|n| n.to_array()),
+            location,
+        }))
     }
 
     /// The middle of [`Self::value_range`]: the isovalue shown when none is given.

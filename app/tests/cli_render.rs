@@ -901,3 +901,173 @@ fn movie_writes_orbit_and_time_series_frames() {
     let e = fails(&["movie", s(&vol), "--time", "-o", s(&played)]);
     assert!(e.contains("one step"), "{e}");
 }
+
+/// `probe` returns a linear field exactly (trilinear interpolation reproduces it) with its
+/// gradient and voxel index, on a volume and on a mesh written with the same field, and
+/// `null`/"outside" beyond the data; `render --pick` reports the sphere a pixel shows: the
+/// distance is the depth image's, the point lies on the analytic sphere, the value is the
+/// isovalue and the normal is radial.
+#[test]
+fn probe_and_pick_report_values_against_analytic_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let field = |p: glam::DVec3| 3.0 * p.x - 2.0 * p.y + 0.5 * p.z + 7.0;
+    let grid = volume_core::Grid::uniform([6, 5, 4], [-1.0, 0.0, 2.0], [0.5, 1.0, 2.0]).unwrap();
+    let d = grid.dims();
+    let mut values = Vec::new();
+    for k in 0..d[2] {
+        for j in 0..d[1] {
+            for i in 0..d[0] {
+                values.push(field(grid.grid_position(i, j, k)) as f32);
+            }
+        }
+    }
+    let v = volume_core::RectilinearVolume::new(grid, values.into()).unwrap();
+    let linear = dir.path().join("linear.nrrd");
+    write_nrrd(
+        &linear,
+        &v,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
+    let out = ok(&[
+        "probe",
+        s(&linear),
+        "--at",
+        "0.3,1.7,4.1",
+        "--at",
+        "9,9,9",
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let p = glam::DVec3::new(0.3, 1.7, 4.1);
+    let got = j[0]["value"].as_f64().unwrap();
+    assert!((got - field(p)).abs() < 1e-4, "{got} vs {}", field(p));
+    let grad: Vec<f64> = (0..3)
+        .map(|a| j[0]["gradient_world"][a].as_f64().unwrap())
+        .collect();
+    for (g, want) in grad.iter().zip([3.0, -2.0, 0.5]) {
+        assert!((g - want).abs() < 1e-4, "{grad:?}");
+    }
+    // Continuous index: (x − origin) / spacing per axis.
+    let index: Vec<f64> = (0..3)
+        .map(|a| j[0]["location"]["index"][a].as_f64().unwrap())
+        .collect();
+    for (i, want) in index.iter().zip([2.6, 1.7, 1.05]) {
+        assert!((i - want).abs() < 1e-5, "{index:?}");
+    }
+    assert_eq!(j[0]["location"]["kind"], "voxel");
+    assert!(j[1].is_null());
+    let text = ok(&["probe", s(&linear), "--at", "9,9,9"]);
+    assert!(text.contains("outside the data"), "{text}");
+
+    // A mesh: tet-ball's `distance` array is the distance from its centre, linear only
+    // inside each tet; at a mesh point it is exact.
+    let mesh = dir.path().join("ball.vtu");
+    ok(&["generate", "tet-ball", "--tets", "2000", "-o", s(&mesh)]);
+    let loaded = formats::mesh::read_mesh(&mesh).unwrap();
+    let m = &loaded.mesh;
+    let values = m.field("distance").unwrap();
+    let q = m.points[m.tets[0][2] as usize];
+    let at = format!("{},{},{}", q[0], q[1], q[2]);
+    let out = ok(&[
+        "probe",
+        s(&mesh),
+        "--field",
+        "distance",
+        "--at",
+        &at,
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(j[0]["location"]["kind"], "tet");
+    let want = f64::from(values.values[m.tets[0][2] as usize]);
+    assert!((j[0]["value"].as_f64().unwrap() - want).abs() < 1e-5);
+
+    // Picking the sphere's centre pixel and one off-centre.
+    let vol = sphere_volume(dir.path());
+    let png = dir.path().join("p.png");
+    let npy = dir.path().join("p.npy");
+    let (w, h) = (64u32, 48u32);
+    ok(&[
+        "render",
+        s(&vol),
+        "--iso",
+        "0.6",
+        "--size",
+        "64x48",
+        "-o",
+        s(&png),
+        "--depth-out",
+        s(&npy),
+    ]);
+    // An off-centre pixel that shows the sphere: the last hit along row 20.
+    let depth = read_depth(&npy);
+    let px = (0..w)
+        .rev()
+        .find(|&x| depth[(20 * w + x) as usize].is_finite())
+        .unwrap();
+    let off_centre = format!("{px},20");
+    let out = ok(&[
+        "render",
+        s(&vol),
+        "--iso",
+        "0.6",
+        "--size",
+        "64x48",
+        "--pick",
+        "32,24",
+        "--pick",
+        &off_centre,
+        "--pick",
+        "0,0",
+        "-o",
+        s(&png),
+        "--depth-out",
+        s(&npy),
+        "--force",
+    ]);
+    let depth = read_depth(&npy);
+    let lines: Vec<&str> = out.lines().filter(|l| l.starts_with("pick ")).collect();
+    assert_eq!(lines.len(), 3, "{out}");
+    assert_eq!(lines[2], "pick 0,0: no surface");
+    let sphere = Sphere::of_sphere_field(0.6);
+    let tol = sphere.trilinear_error_bound([0.05; 3]).unwrap() + 1e-4;
+    for (line, [px, py]) in lines[..2].iter().zip([[32u32, 24u32], [px, 20]]) {
+        assert!(line.contains("surface 0 (iso 0.6"), "{line}");
+        let number = |key: &str| -> Vec<f64> {
+            let rest = line.split(key).nth(1).unwrap();
+            rest.split([';', '('])
+                .next()
+                .unwrap()
+                .split(',')
+                .map(|x| x.trim().parse::<f64>().unwrap())
+                .collect()
+        };
+        let t = number("t = ")[0];
+        assert!(
+            (t - f64::from(depth[(py * w + px) as usize])).abs() < 1e-5,
+            "{line}"
+        );
+        let world = glam::DVec3::from_slice(&number("world "));
+        assert!((sphere.centre_distance(world) - 0.6).abs() < tol, "{line}");
+        let value = number("value ")[0];
+        assert!((value - 0.6).abs() < tol, "{line}");
+        let normal = glam::DVec3::from_slice(&number("normal "));
+        let radial = (world - sphere.centre).normalize();
+        assert!(normal.dot(radial) > 0.99, "{line}");
+    }
+    assert!(px > 32 + 4, "the off-centre pixel {px} is near the middle");
+    let e = fails(&[
+        "render",
+        s(&vol),
+        "--size",
+        "64x48",
+        "--pick",
+        "64,0",
+        "-o",
+        s(&dir.path().join("q.png")),
+    ]);
+    assert!(e.contains("--pick 64,0") && e.contains("64x48"), "{e}");
+    assert_eq!(depth.len(), (w * h) as usize);
+}

@@ -12,6 +12,7 @@ pub mod movie;
 pub mod npy;
 pub mod open_args;
 pub mod preprocess;
+pub mod probe;
 pub mod render;
 
 /// Isoscope: exact, interactive isosurfaces of volume data by CPU ray tracing.
@@ -35,6 +36,8 @@ pub enum Command {
     /// An orbit around the data or a time series played through: numbered PNG frames, and
     /// movie.mp4 when ffmpeg is on the PATH.
     Movie(movie::Args),
+    /// The interpolated value, gradient, normal and voxel or tet at world positions.
+    Probe(probe::Args),
     /// Measure build time, memory and rays/s of the acceleration structures and intersectors.
     Bench(bench::Args),
     /// Write docs/accuracy.md: speed and accuracy of every intersector against the f64
@@ -73,6 +76,7 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Generate(a) => generate::run(&a),
         Command::Render(a) => render::run(&a),
         Command::Movie(a) => movie::run(&a),
+        Command::Probe(a) => probe::run(&a),
         Command::Bench(a) => bench::run(&a),
         Command::Accuracy(a) => accuracy::run(&a),
         Command::Preprocess(a) => preprocess::run(&a),

@@ -194,6 +194,74 @@ pub struct Args {
     /// isopolygon tests for meshes).
     #[arg(long)]
     pub stats: bool,
+    /// Print what the pixel (column, row from the top left) shows: the surface, its distance
+    /// and world position, the value, normal and voxel or tet there. Repeatable.
+    #[arg(long = "pick", value_name = "PX,PY", value_parser = parse_pixel)]
+    pub pick: Vec<[u32; 2]>,
+}
+
+/// `PX,PY`: a pixel's column and row.
+fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    match parts[..] {
+        [x, y] => match (x.parse(), y.parse()) {
+            (Ok(x), Ok(y)) => Ok([x, y]),
+            _ => Err(format!(
+                "`{s}`: expected a pixel column,row such as 400,300"
+            )),
+        },
+        _ => Err(format!(
+            "`{s}`: expected a pixel column,row such as 400,300"
+        )),
+    }
+}
+
+/// Prints what each picked pixel of `frame` shows (`render --pick`).
+fn print_picks(
+    picks: &[[u32; 2]],
+    scene: &AnyScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    frame: &Frame,
+) -> anyhow::Result<()> {
+    let f = crate::values::ValueFormat::F64;
+    for &[px, py] in picks {
+        let t = frame.depth[(py * frame.width + px) as usize];
+        if !t.is_finite() {
+            println!("pick {px},{py}: no surface");
+            continue;
+        }
+        let ray = camera.primary_ray(px, py, frame.width, frame.height);
+        let to_f64 = |v: Vec3| glam::DVec3::from(v.to_array().map(f64::from));
+        let world = to_f64(ray.origin) + to_f64(ray.dir) * f64::from(t);
+        let Some(probe) = scene.probe(world)? else {
+            println!("pick {px},{py}: a hit at t = {t} outside the data");
+            continue;
+        };
+        // The surface whose isovalue the interpolated value is nearest: the one hit.
+        let surface = settings
+            .surfaces
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.visible)
+            .min_by(|(_, a), (_, b)| {
+                let d = |s: &Surface| (f64::from(s.isovalue) - probe.value).abs();
+                d(a).total_cmp(&d(b))
+            });
+        let f32s = crate::values::ValueFormat::F32;
+        let surface = surface.map_or_else(String::new, |(i, s)| {
+            format!("surface {i} (iso {}); ", f32s.value(f64::from(s.isovalue)))
+        });
+        println!(
+            "pick {px},{py}: {surface}t = {}; world {}, {}, {}; {}",
+            f32s.value(f64::from(t)),
+            f.value(world.x),
+            f.value(world.y),
+            f.value(world.z),
+            super::probe::probe_text(&probe)
+        );
+    }
+    Ok(())
 }
 
 /// Surfaces from `--iso` arguments, or one at the middle of the scene's value range.
@@ -453,6 +521,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         formats::output::check_output(out, replace)?;
     }
     let format = crate::output::ImageFormat::for_path(&args.output)?;
+    if let Some([px, py]) = args
+        .pick
+        .iter()
+        .find(|[px, py]| *px >= a.size[0] || *py >= a.size[1])
+    {
+        bail!(
+            "--pick {px},{py} is outside the {}x{} image",
+            a.size[0],
+            a.size[1]
+        );
+    }
     let (camera, settings) = a.view_of(&scene, args.stats)?;
     let Rendered { frame, ooc_level } = render_scene(&scene, &camera, &settings, level_timeout)?;
     // Both outputs are complete before either is renamed into place: a failed depth map
@@ -472,6 +551,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     for out in written {
         out.commit()?;
     }
+    print_picks(&args.pick, &scene, &camera, &settings, &frame)?;
     let secs = frame.elapsed.as_secs_f64();
     let structure = match &scene {
         AnyScene::Grid(g) => format!(

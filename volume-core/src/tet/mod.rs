@@ -17,6 +17,7 @@
 pub mod bvh;
 pub mod mesh;
 pub mod mt;
+pub mod probe;
 pub mod scene;
 mod simd;
 pub mod steps;
@@ -27,6 +28,7 @@ pub use mesh::{
     PointField, TetError, TetMesh, lattice_tets, points_from_f64, split_hex, split_pyramid,
     split_wedge,
 };
+pub use probe::{TetProbe, probe_tets};
 pub use scene::{TetNormals, TetScene};
 pub use steps::{StepScheme, TetStep, TetSteps};
 pub use traverse::{MAX_PACKET, RawHit};

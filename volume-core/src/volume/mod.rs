@@ -15,11 +15,13 @@
 
 mod buffer;
 mod grid;
+mod probe;
 mod value_map;
 mod world_frame;
 
 pub use buffer::{ByteSource, VoxelBuffer, VoxelData};
 pub use grid::{AxisCoords, Grid, MAX_WORLD_COORD, coordinate_overflow};
+pub use probe::VolumeProbe;
 pub use value_map::{BadValueMap, ValueMap};
 pub use world_frame::WorldFrame;
 
