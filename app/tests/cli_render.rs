@@ -858,6 +858,35 @@ fn movie_writes_orbit_and_time_series_frames() {
         / a.as_raw().len() as f64;
     assert!(mean < 1.0, "{mean}");
     assert_ne!(frame(0), frame(1));
+    // With ffmpeg (where the machine has it): movie.mp4 holds the frames, as ffprobe counts.
+    let ffprobe = std::process::Command::new("ffprobe")
+        .arg("-version")
+        .output();
+    if ffprobe.is_ok_and(|o| o.status.success()) {
+        let encoded = dir.path().join("encoded");
+        ok(&[
+            "movie",
+            s(&vol),
+            "--frames",
+            "6",
+            "--size",
+            "40x30",
+            "-o",
+            s(&encoded),
+        ]);
+        let probe = std::process::Command::new("ffprobe")
+            .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+            .args([
+                "-show_entries",
+                "stream=nb_read_frames,width,height",
+                "-of",
+                "csv=p=0",
+            ])
+            .arg(encoded.join("movie.mp4"))
+            .output()
+            .unwrap();
+        assert_eq!(String::from_utf8_lossy(&probe.stdout).trim(), "40,30,6");
+    }
     // Again without --force: refused, naming the frame.
     let e = fails(&["movie", s(&vol), "--frames", "4", "-o", s(&frames)]);
     assert!(e.contains("frame_0000.png") && e.contains("--force"), "{e}");
