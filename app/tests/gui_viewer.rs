@@ -1058,3 +1058,78 @@ fn a_tiff_stack_takes_its_spacing_from_the_data_section() {
     );
     assert_eq!(h.state().state.tiff_spacing, Some([0.5, 1.0, 2.5]));
 }
+
+// ---- typed numbers, the time bar --------------------------------
+
+/// Typing a number key by key (as `xdotool type` and people do) applies it when the edit
+/// ends: applied per keystroke, the "0" of "0.3" was clamped to the range's minimum and its
+/// text replaced what was being typed.
+#[test]
+fn a_number_typed_key_by_key_applies_when_the_edit_ends() {
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    let (lo, hi) = h.state().data().unwrap().value_range;
+    let text = format!("{:.4}", lo + 0.3 * (hi - lo));
+    let typed: f64 = text.parse().unwrap();
+    // The test means something only if a prefix of the text lies outside the range.
+    let first: f64 = text[..1].parse().unwrap();
+    assert!(first < lo || first > hi, "{text} in {lo} … {hi}");
+
+    h.get_by_label("Value 1").focus();
+    h.run_steps(2);
+    for c in text.chars() {
+        h.get_by_label("Value 1").type_text(&c.to_string());
+        h.run_steps(1);
+    }
+    h.key_press(egui::Key::Enter);
+    h.run_steps(3);
+    let iso = h.state().state.surfaces[0].isovalue;
+    assert!(
+        (iso - typed).abs() <= 1e-12 * typed.abs().max(1.0),
+        "typed {text}, got {iso}"
+    );
+
+    // The screenshot size (clamped to 16 …): "1920" typed key by key is 1920, not 16 or 192.
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Screenshot…").click();
+    h.run_steps(2);
+    h.get_by_label("Width").focus();
+    h.run_steps(2);
+    for c in "1234".chars() {
+        h.get_by_label("Width").type_text(&c.to_string());
+        h.run_steps(1);
+    }
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    assert_eq!(h.state().prefs.screenshot_size[0], 1234);
+}
+
+/// The time bar fits a 1280-pixel-wide window: every control, the playback rate last among
+/// them before the step slider, is inside the window.
+#[test]
+fn the_time_bar_fits_a_1280_pixel_window() {
+    let recorder = Arc::new(Recorder::default());
+    let backend = Arc::new(TestBackend {
+        recorder: Arc::clone(&recorder),
+    });
+    let files = vec![PathBuf::from("/virtual/series.test")];
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .build_eframe(move |cc| ViewerApp::with_backend(&cc.egui_ctx, backend, files));
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    h.run_steps(3);
+    for (role, label) in [
+        (Role::Slider, "Playback fps"),
+        (Role::Slider, "Time step"),
+        (Role::CheckBox, "Loop"),
+        (Role::Button, "Last"),
+    ] {
+        let rect = h.get_by_role_and_label(role, label).rect();
+        assert!(
+            rect.max.x <= 1280.0 && rect.width() > 10.0,
+            "{label} at {rect:?} in a 1280-pixel window"
+        );
+    }
+}

@@ -44,12 +44,8 @@ impl ViewerApp {
                 .show(ctx, |ui| {
                     let [w, h] = &mut self.prefs.screenshot_size;
                     ui.horizontal(|ui| {
-                        let l = ui.label("Width");
-                        ui.add(egui::DragValue::new(w).range(16..=16384))
-                            .labelled_by(l.id);
-                        let l = ui.label("Height");
-                        ui.add(egui::DragValue::new(h).range(16..=16384))
-                            .labelled_by(l.id);
+                        panels::labelled_drag(ui, "Width", panels::number(w).range(16..=16384));
+                        panels::labelled_drag(ui, "Height", panels::number(h).range(16..=16384));
                     });
                     let mut path = self.prefs.screenshot_path.display().to_string();
                     ui.horizontal(|ui| {
