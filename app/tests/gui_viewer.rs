@@ -66,6 +66,8 @@ impl Gate {
 struct Recorder {
     log: Mutex<Log>,
     gate: Gate,
+    /// The render time frames report (at least 1 ms), to stand for a slow renderer.
+    render_time: Mutex<Duration>,
 }
 
 struct RecordingScene {
@@ -113,7 +115,7 @@ impl PreparedScene for RecordingScene {
             width: w,
             height: h,
             rgba8: px.repeat((w * h) as usize),
-            elapsed: Duration::from_millis(1),
+            elapsed: (*self.recorder.render_time.lock().unwrap()).max(Duration::from_millis(1)),
             rays: u64::from(w * h),
             lod_level: None,
         }))
@@ -406,6 +408,48 @@ fn playback_advances_and_loops() {
         seen[h.state().state.time.step] = true;
         h.step();
         std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Playback draws full frames when they keep up with the playback rate, and 1/4-resolution
+/// previews only when the last full frame took longer than a step lasts.
+#[test]
+fn playback_draws_full_frames_when_they_keep_up() {
+    // (reported full-frame time, playback rate, the resolution scale expected while playing)
+    for (render_time, fps, expected_scale) in [(1, 10.0, 1), (400, 10.0, 4)] {
+        let (mut h, rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
+        step_until(&mut h, "the series", |a| a.data().is_some());
+        // A full frame of a moved view measures the render time (the harness may have drawn
+        // the first frame before the time was set).
+        *rec.render_time.lock().unwrap() = Duration::from_millis(render_time);
+        h.state_mut().state.camera.orbit(10.0, 0.0);
+        settle(&mut h);
+        h.state_mut().state.time.fps = fps;
+        h.get_by_label("Play").click();
+        h.run_steps(1);
+        let mut scales = Vec::new();
+        let start = Instant::now();
+        // Frames of steps 1 to 3 are drawn during playback.
+        while scales.len() < 3 {
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "playback stalled"
+            );
+            if let Some(f) = h.state().shown_frame()
+                && f.request.step > 0
+                && scales
+                    .last()
+                    .is_none_or(|(step, _)| *step != f.request.step)
+            {
+                scales.push((f.request.step, f.request.scale));
+            }
+            h.step();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(
+            scales.iter().all(|(_, scale)| *scale == expected_scale),
+            "full frames reported to take {render_time} ms at {fps} steps/s: {scales:?}"
+        );
     }
 }
 
@@ -1059,7 +1103,36 @@ fn a_tiff_stack_takes_its_spacing_from_the_data_section() {
     assert_eq!(h.state().state.tiff_spacing, Some([0.5, 1.0, 2.5]));
 }
 
-// ---- typed numbers, the time bar --------------------------------
+// ---- typed numbers, keyboard refinement, the time bar --------------------------------
+
+/// Steps the app the way eframe's event loop does: a frame only when egui asked for one
+/// (an input event, `request_repaint` from a job, or `request_repaint_after` coming due),
+/// for `duration`. [`step_until`] steps continuously, which hides a missing repaint request.
+fn run_like_event_loop(h: &mut Harness<'_, ViewerApp>, duration: Duration) {
+    let wake_at: Arc<Mutex<Option<Instant>>> = Arc::new(Mutex::new(Some(Instant::now())));
+    let w = Arc::clone(&wake_at);
+    h.ctx.set_request_repaint_callback(move |info| {
+        let at = Instant::now() + info.delay.min(Duration::from_secs(3600));
+        let mut wake = w.lock().unwrap();
+        *wake = Some(wake.map_or(at, |t| t.min(at)));
+    });
+    let end = Instant::now() + duration;
+    while Instant::now() < end {
+        let due = {
+            let mut wake = wake_at.lock().unwrap();
+            let due = wake.is_some_and(|t| t <= Instant::now());
+            if due {
+                *wake = None;
+            }
+            due
+        };
+        if due {
+            h.step();
+        } else {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+}
 
 /// Typing a number key by key (as `xdotool type` and people do) applies it when the edit
 /// ends: applied per keystroke, the "0" of "0.3" was clamped to the range's minimum and its
@@ -1104,6 +1177,39 @@ fn a_number_typed_key_by_key_applies_when_the_edit_ends() {
     h.key_press(egui::Key::Enter);
     h.run_steps(2);
     assert_eq!(h.state().prefs.screenshot_size[0], 1234);
+}
+
+/// Arrow keys, `R` and `-` move the view at 1/4 resolution; once the view settles the
+/// full-resolution frame follows without any further input (no mouse move needed).
+#[test]
+fn keyboard_moves_are_refined_without_further_input() {
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    // Keys act on the view while the pointer is over it (the side panel is on the left).
+    h.hover_at(egui::pos2(900.0, 400.0));
+    h.run_steps(1);
+    for key in [egui::Key::ArrowLeft, egui::Key::R, egui::Key::Minus] {
+        let before = h.state().state.camera;
+        h.key_press(key);
+        h.step();
+        assert_ne!(h.state().state.camera, before, "{key:?} moved the view");
+        // The coarse frame of the moved view arrives while the view counts as moving.
+        step_until(&mut h, "a coarse frame", |a| {
+            a.shown_frame().is_some_and(|f| {
+                f.request.scale > 1
+                    && a.desired_request(f.request.scale).as_ref() == Some(&f.request)
+            })
+        });
+        run_like_event_loop(&mut h, Duration::from_millis(800));
+        let app = h.state();
+        let shown = &app.shown_frame().unwrap().request;
+        assert_eq!(
+            shown.scale, 1,
+            "{key:?}: the full-resolution frame followed"
+        );
+        assert_eq!(Some(shown), app.desired_request(1).as_ref());
+    }
 }
 
 /// The time bar fits a 1280-pixel-wide window: every control, the playback rate last among

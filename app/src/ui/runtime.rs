@@ -90,6 +90,9 @@ pub struct Runtime {
     pub screenshot_window: bool,
     pub notifications: Vec<Notification>,
     pub last_interaction: Option<Instant>,
+    /// How long the last full-resolution frame took to render: playback draws full frames
+    /// when this fits in a step's time at the playback rate, previews otherwise.
+    pub last_full_frame: Option<Duration>,
     pub last_step_advance: Instant,
     /// The viewport's size in pixels (the full-resolution render size).
     pub viewport_px: [u32; 2],
@@ -114,6 +117,7 @@ impl Default for Runtime {
             screenshot_window: false,
             notifications: Vec::new(),
             last_interaction: None,
+            last_full_frame: None,
             last_step_advance: Instant::now(),
             viewport_px: [0, 0],
         }

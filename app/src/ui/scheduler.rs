@@ -191,6 +191,9 @@ impl ViewerApp {
             Ok(Some(img)) if ticket.epoch == self.rt.epoch && ticket.generation > newest_shown => {
                 let (width, height, bytes) = (img.width, img.height, img.rgba8.len());
                 let size = [width as usize, height as usize];
+                if ticket.request.scale == 1 {
+                    self.rt.last_full_frame = Some(img.elapsed);
+                }
                 if let Some(color) = color_image(size, img.rgba8) {
                     let texture = match self.rt.shown.take() {
                         Some(mut s) => {
@@ -209,6 +212,7 @@ impl ViewerApp {
                         lod_level: img.lod_level,
                     });
                     self.rt.shown_times.push_back(Instant::now());
+
                     self.stats.renders_shown += 1;
                 } else {
                     self.stats.renders_discarded += 1;
@@ -379,20 +383,40 @@ impl ViewerApp {
 
     // ---- what the state asks for --------------------------------------------------------
 
+    /// True while the view moves (a drag, or input within [`SETTLE`]).
     fn is_interacting(&self, ctx: &egui::Context) -> bool {
         ctx.dragged_id().is_some()
-            || self.state.time.playing
             || self
                 .rt
                 .last_interaction
                 .is_some_and(|t| t.elapsed() < SETTLE)
     }
 
+    /// Playback draws previews only when full frames cannot keep up: when the last
+    /// full-resolution frame took longer than a step lasts at the playback rate (or none
+    /// has been measured yet).
+    fn playback_needs_previews(&self) -> bool {
+        let t = &self.state.time;
+        t.playing
+            && self
+                .rt
+                .last_full_frame
+                .is_none_or(|took| took > playback_period(t.fps))
+    }
+
     /// Starts the step switch, render and prefetch the state asks for (module docs).
     pub(super) fn schedule(&mut self, ctx: &egui::Context) {
         self.schedule_step();
         let interacting = self.is_interacting(ctx);
-        let scale = if interacting { INTERACTIVE_SCALE } else { 1 };
+        let previews = interacting || self.playback_needs_previews();
+        if interacting {
+            // A frame once the view settles, which starts the full-resolution refinement.
+            // Asked for before anything below returns early: after keyboard input (arrows,
+            // R, +/-) no pointer event follows to wake the viewer, and a coarse frame that
+            // is already on screen would otherwise stay there.
+            ctx.request_repaint_after(SETTLE);
+        }
+        let scale = if previews { INTERACTIVE_SCALE } else { 1 };
         let Some(wanted) = self.desired_request(scale) else {
             return;
         };
@@ -432,9 +456,6 @@ impl ViewerApp {
             // A coarse frame is cheap: let it finish (the user sees progress), then render
             // the newest request.
             Some(_) => self.rt.pending_render = Some(wanted),
-        }
-        if interacting {
-            ctx.request_repaint_after(SETTLE);
         }
     }
 
@@ -495,7 +516,7 @@ impl ViewerApp {
         if !t.playing || count <= 1 {
             return;
         }
-        let period = Duration::from_secs_f32(1.0 / t.fps.clamp(0.1, 120.0));
+        let period = playback_period(t.fps);
         let since = self.rt.last_step_advance.elapsed();
         if since < period {
             ctx.request_repaint_after(period.saturating_sub(since));
@@ -518,4 +539,9 @@ impl ViewerApp {
         }
         ctx.request_repaint_after(period);
     }
+}
+
+/// How long one step lasts when playing at `fps` steps per second.
+fn playback_period(fps: f32) -> Duration {
+    Duration::from_secs_f32(1.0 / fps.clamp(0.1, 120.0))
 }
