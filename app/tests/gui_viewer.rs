@@ -718,6 +718,10 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
         let shown = &app.shown_frame().unwrap().request;
         assert_eq!(shown.step, step, "a frame of the new step arrived");
         assert!(shown.options.smooth_normals);
+        // The data section names the step shown (not the step the mesh was opened at).
+        h.run_steps(1);
+        h.get_by_label_contains(&format!("step {step} of 4"));
+        let app = h.state();
         // Independent truth: the same step opened from scratch (a fresh BVH build).
         let truth = open_scene(
             &pattern,
@@ -811,6 +815,11 @@ fn an_isot_file_refines_to_the_finest_level_with_a_visible_indicator() {
     // The indicator shows the finest level.
     h.run_steps(1);
     h.get_by_label_contains(&format!("LOD level {count}/{count}"));
+    // So does the data section, with the status bar's resident memory.
+    let mib = h.state().lod_status().unwrap().resident_bytes as f64 / f64::from(1u32 << 20);
+    h.get_by_label_contains(&format!(
+        "level {count}/{count} loaded, {mib:.1} MiB resident"
+    ));
     // At the finest level the out-of-core frame equals the in-core render of the volume.
     let truth = AnyScene::Grid(GridData::from_volume(
         std::path::Path::new("in-core"),
@@ -889,6 +898,9 @@ fn the_point_array_picker_redraws_with_the_chosen_array() {
     );
     let shown = &app.shown_frame().unwrap().request;
     assert_eq!(shown.field.as_deref(), Some("gaussians"));
+    // The data section names the drawn array.
+    h.get_by_label_contains("field \"gaussians\"");
+    let app = h.state();
     assert_eq!(
         app.stats.scenes_built, 1,
         "a field switch is a refit, not a rebuild"

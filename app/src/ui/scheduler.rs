@@ -44,6 +44,13 @@ impl ViewerApp {
         }
         // A newly published level changes the render request.
         self.rt.lod = self.rt.data.as_ref().and_then(|d| d.scene.lod_status());
+        // The data section's summary names the drawn point array, step and levels: read
+        // them from the scene, not from when it was opened.
+        if let Some(d) = self.rt.data.as_mut()
+            && let Some(summary) = d.scene.summary()
+        {
+            d.summary = summary;
+        }
         if self.rt.lod.as_ref().is_some_and(|l| !l.finished) {
             ctx.request_repaint_after(LOD_POLL);
         }
