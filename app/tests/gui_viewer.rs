@@ -1115,7 +1115,7 @@ fn a_tiff_stack_takes_its_spacing_from_the_data_section() {
     assert_eq!(h.state().state.tiff_spacing, Some([0.5, 1.0, 2.5]));
 }
 
-// ---- typed numbers, keyboard refinement, the time bar --------------------------------
+// ---- typed numbers, keyboard refinement, the time bar, absolute paths ------------------
 
 /// Steps the app the way eframe's event loop does: a frame only when egui asked for one
 /// (an input event, `request_repaint` from a job, or `request_repaint_after` coming due),
@@ -1222,6 +1222,24 @@ fn keyboard_moves_are_refined_without_further_input() {
         );
         assert_eq!(Some(shown), app.desired_request(1).as_ref());
     }
+}
+
+/// The recent files and a saved session hold absolute paths: a relative one names another
+/// file, or none, from another working directory.
+#[test]
+fn recent_files_and_sessions_hold_absolute_paths() {
+    // The test backend opens any path ending in `series.test`; the file need not exist.
+    let (mut h, _rec) = harness(vec![PathBuf::from("series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    let cwd = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
+    let expected = cwd.join("series.test");
+    assert_eq!(h.state().prefs.recent_files.first(), Some(&expected));
+    assert_eq!(h.state().state.files, vec![expected.clone()]);
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    h.state_mut().push(Command::SaveSession(session.clone()));
+    wait_for_saved_session(&mut h);
+    assert_eq!(ViewerState::load(&session).unwrap().files, vec![expected]);
 }
 
 /// The time bar fits a 1280-pixel-wide window: every control, the playback rate last among

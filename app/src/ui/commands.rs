@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use super::app::ViewerApp;
 use super::backend::LoadedData;
-use super::files::{FileGroup, group_files, is_session_file, needs_raw_dialog};
+use super::files::{FileGroup, absolute_path, group_files, is_session_file, needs_raw_dialog};
 use super::jobs::Job;
 use super::panels;
 use super::runtime::{RawDialog, SeriesDialog};
@@ -89,7 +89,12 @@ impl ViewerApp {
         match cmd {
             Command::OpenDefault => self.start_load(None, None, Some(Vec::new())),
             Command::SetField(name) => self.start_field_switch(name),
-            Command::OpenFiles(files) => self.open_files(&files),
+            Command::OpenFiles(files) => {
+                // Absolute from here on: the session's file list and the recent files must
+                // name the same files from any working directory.
+                let files: Vec<PathBuf> = files.iter().map(|f| absolute_path(f)).collect();
+                self.open_files(&files);
+            }
             Command::OpenRaw {
                 path,
                 layout,

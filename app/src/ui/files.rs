@@ -154,6 +154,25 @@ pub fn group_files(files: &[PathBuf]) -> FileGroup {
     }
 }
 
+/// `path` made absolute, so that the recent-files list and saved sessions name the same file
+/// from any working directory: canonical (symbolic links and `..` resolved) when it exists;
+/// a series pattern (`blob_*.nrrd`) or a missing file keeps its name under its canonical
+/// folder, else it is joined to the working directory.
+pub fn absolute_path(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let in_canonical_dir = path.file_name().and_then(|name| {
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+        std::fs::canonicalize(dir.unwrap_or(Path::new(".")))
+            .ok()
+            .map(|d| d.join(name))
+    });
+    in_canonical_dir
+        .or_else(|| std::path::absolute(path).ok())
+        .unwrap_or_else(|| path.to_path_buf())
+}
+
 /// Bytes of a `.json` file [`is_session_file`] reads at most: sessions are a few KiB, and
 /// serde writes `version` and `files` first.
 const SESSION_PROBE_BYTES: u64 = 64 * 1024;
@@ -233,6 +252,30 @@ mod tests {
                 p
             })
             .collect()
+    }
+
+    #[test]
+    fn paths_become_absolute_from_any_working_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = touch(dir.path(), &["a.nrrd"]).remove(0);
+        let canonical_dir = std::fs::canonicalize(dir.path()).unwrap();
+        // `..` and a symbolic-link-free detour resolve to the canonical file.
+        let detour = dir
+            .path()
+            .join("..")
+            .join(dir.path().file_name().unwrap())
+            .join("a.nrrd");
+        assert_eq!(absolute_path(&detour), canonical_dir.join("a.nrrd"));
+        assert_eq!(absolute_path(&file), canonical_dir.join("a.nrrd"));
+        // A pattern (no such file): its name under the canonical folder.
+        let pattern = dir.path().join("blob_*.nrrd");
+        assert_eq!(absolute_path(&pattern), canonical_dir.join("blob_*.nrrd"));
+        // A relative name: under the working directory.
+        let cwd = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
+        assert_eq!(
+            absolute_path(Path::new("no-such-file.nrrd")),
+            cwd.join("no-such-file.nrrd")
+        );
     }
 
     #[test]

@@ -48,9 +48,12 @@ impl Default for Prefs {
 pub const MAX_RECENT: usize = 10;
 
 impl Prefs {
+    /// Puts `path` first in the recent files, as an absolute path (a relative one would name
+    /// another file, or none, when the viewer starts in another working directory).
     pub fn remember(&mut self, path: &std::path::Path) {
-        self.recent_files.retain(|p| p != path);
-        self.recent_files.insert(0, path.to_path_buf());
+        let path = super::files::absolute_path(path);
+        self.recent_files.retain(|p| *p != path);
+        self.recent_files.insert(0, path);
         self.recent_files.truncate(MAX_RECENT);
     }
 }
