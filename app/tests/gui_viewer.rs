@@ -1124,7 +1124,7 @@ fn run_like_event_loop(h: &mut Harness<'_, ViewerApp>, duration: Duration) {
     let wake_at: Arc<Mutex<Option<Instant>>> = Arc::new(Mutex::new(Some(Instant::now())));
     let w = Arc::clone(&wake_at);
     h.ctx.set_request_repaint_callback(move |info| {
-        let at = Instant::now() + info.delay.min(Duration::from_secs(3600));
+        let at = Instant::now() + info.delay.min(Duration::from_hours(1));
         let mut wake = w.lock().unwrap();
         *wake = Some(wake.map_or(at, |t| t.min(at)));
     });
@@ -1268,4 +1268,56 @@ fn the_time_bar_fits_a_1280_pixel_window() {
             "{label} at {rect:?} in a 1280-pixel window"
         );
     }
+}
+
+/// File → Open… and Save session… work without a desktop portal: the in-app browser takes a
+/// typed folder, a click selects a file and Open opens it; Save session… writes the session
+/// under the name typed, in the shown file's folder.
+#[test]
+fn open_and_save_session_go_through_the_in_app_browser() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = std::fs::canonicalize(dir.path()).unwrap();
+    // The test backend opens any path ending in `series.test`.
+    std::fs::write(folder.join("series.test"), b"").unwrap();
+    std::fs::create_dir(folder.join("sub")).unwrap();
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Open…").click();
+    // A window is laid out invisibly in its first frame.
+    h.run_steps(3);
+    h.get_by_label("Folder").focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label("Folder")
+        .type_text(&folder.display().to_string());
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    // Folders first (with a slash), then files with their size.
+    h.get_by_label("sub/");
+    h.get_by_label_contains("series.test").click();
+    h.run_steps(2);
+    h.get_by_label("Open").click();
+    h.run_steps(2);
+    step_until(&mut h, "series.test", |a| {
+        a.data().is_some_and(|d| d.name == "series.test")
+    });
+    assert_eq!(h.state().state.files, vec![folder.join("series.test")]);
+
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save session…").click();
+    h.run_steps(3);
+    h.get_by_label("File name").focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label("File name").type_text("mine");
+    h.run_steps(2);
+    h.get_by_label("Save").click();
+    wait_for_saved_session(&mut h);
+    let saved = ViewerState::load(&folder.join("mine.json")).unwrap();
+    assert_eq!(saved.files, vec![folder.join("series.test")]);
 }

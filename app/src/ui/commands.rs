@@ -11,6 +11,7 @@ use std::time::Instant;
 
 use super::app::ViewerApp;
 use super::backend::LoadedData;
+use super::file_browser::{BrowsePurpose, FileBrowser};
 use super::files::{FileGroup, absolute_path, group_files, is_session_file, needs_raw_dialog};
 use super::jobs::Job;
 use super::panels;
@@ -46,8 +47,9 @@ pub enum Command {
     ShowFile(usize),
     /// Tet meshes: draws another point array (a value refit, no rebuild).
     SetField(String),
+    /// The file browser for data files.
     PickFiles,
-    /// The folder dialog (a DICOM series folder).
+    /// The file browser for a folder (a DICOM series folder).
     PickFolder,
     AddSurface,
     RemoveSurface(usize),
@@ -125,18 +127,8 @@ impl ViewerApp {
                     files,
                 });
             }
-            Command::PickFiles => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .set_title("Open volume data")
-                    .pick_files()
-                    .map(Command::OpenFiles)
-            }),
-            Command::PickFolder => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .set_title("Open a folder (DICOM series)")
-                    .pick_folder()
-                    .map(|dir| Command::OpenFiles(vec![dir]))
-            }),
+            Command::PickFiles => self.open_browser(BrowsePurpose::OpenData),
+            Command::PickFolder => self.open_browser(BrowsePurpose::OpenFolder),
             Command::AddSurface => {
                 if let Some(d) = &self.rt.data {
                     let s = panels::new_surface(&self.state, d);
@@ -177,19 +169,8 @@ impl ViewerApp {
             }
             Command::SaveSession(p) => self.start_session_save(p),
             Command::LoadSession(p) => self.start_session_load(p),
-            Command::PickSaveSession => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .add_filter("Isoscope session", &["json"])
-                    .set_file_name("session.json")
-                    .save_file()
-                    .map(Command::SaveSession)
-            }),
-            Command::PickLoadSession => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .add_filter("Isoscope session", &["json"])
-                    .pick_file()
-                    .map(Command::LoadSession)
-            }),
+            Command::PickSaveSession => self.open_browser(BrowsePurpose::SaveSession),
+            Command::PickLoadSession => self.open_browser(BrowsePurpose::OpenSession),
             Command::Screenshot {
                 path,
                 width,
@@ -216,9 +197,17 @@ impl ViewerApp {
         }
     }
 
-    /// Runs a native file dialog on its own thread; its answer is queued as a command.
-    fn start_dialog(&mut self, dialog: impl FnOnce() -> Option<Command> + Send + 'static) {
-        self.start_asking("file dialog", dialog);
+    /// Opens the in-app file browser, in the shown file's folder (else the working
+    /// directory).
+    fn open_browser(&mut self, purpose: BrowsePurpose) {
+        let folder = self
+            .rt
+            .data
+            .as_ref()
+            .and_then(|d| d.path.as_ref())
+            .and_then(|p| p.parent())
+            .map(std::path::Path::to_path_buf);
+        self.rt.file_browser = Some(FileBrowser::new(purpose, folder));
     }
 
     /// Runs `ask` (a dialog, or a listing that decides what to show next) on its own

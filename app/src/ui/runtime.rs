@@ -86,6 +86,8 @@ pub struct Runtime {
     /// When recent frames arrived (the status bar's frames/s).
     pub shown_times: VecDeque<Instant>,
     pub raw_dialog: Option<RawDialog>,
+    /// The in-app file browser (File → Open…, sessions) while it is open.
+    pub file_browser: Option<super::file_browser::FileBrowser>,
     pub series_dialog: Option<SeriesDialog>,
     pub screenshot_window: bool,
     pub notifications: Vec<Notification>,
@@ -113,6 +115,7 @@ impl Default for Runtime {
             shown: None,
             shown_times: VecDeque::new(),
             raw_dialog: None,
+            file_browser: None,
             series_dialog: None,
             screenshot_window: false,
             notifications: Vec::new(),

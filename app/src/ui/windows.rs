@@ -1,6 +1,7 @@
-//! Windows over the viewport: the raw-file layout dialog, the DICOM series picker, the
-//! screenshot dialog and the notifications (errors stay until dismissed). They read the state and push
-//! [`Command`]s; so do files dropped on the window.
+//! Windows over the viewport: the raw-file layout dialog, the file browser
+//! ([`super::file_browser`]), the DICOM series picker, the screenshot dialog and the
+//! notifications (errors stay until dismissed). They read the state and push [`Command`]s;
+//! so do files dropped on the window.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -9,6 +10,7 @@ use egui::{Color32, Vec2};
 
 use super::app::ViewerApp;
 use super::commands::Command;
+use super::file_browser::BrowseOutcome;
 use super::panels;
 
 impl ViewerApp {
@@ -32,6 +34,16 @@ impl ViewerApp {
                 });
             } else if !open {
                 self.rt.raw_dialog = None;
+            }
+        }
+        if let Some(browser) = &mut self.rt.file_browser {
+            match browser.ui(ctx) {
+                BrowseOutcome::Open => {}
+                BrowseOutcome::Done(command) => {
+                    self.commands.push(command);
+                    self.rt.file_browser = None;
+                }
+                BrowseOutcome::Cancelled => self.rt.file_browser = None,
             }
         }
         self.series_picker_ui(ctx);
