@@ -1321,3 +1321,49 @@ fn open_and_save_session_go_through_the_in_app_browser() {
     let saved = ViewerState::load(&folder.join("mine.json")).unwrap();
     assert_eq!(saved.files, vec![folder.join("series.test")]);
 }
+
+/// Types `text` into the field labelled `label`, replacing what it holds, and presses Enter.
+fn replace_text(h: &mut Harness<'_, ViewerApp>, label: &str, text: &str) {
+    h.get_by_label(label).focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label(label).type_text(text);
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+}
+
+/// A raw file without a sidecar: the layout dialog starts from a guess (the file size fits
+/// one cube) and says so; a layout that does not fit the file brings the dialog back with the
+/// error and the layout entered, and the corrected layout opens.
+#[test]
+fn the_raw_dialog_guesses_the_layout_and_comes_back_after_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ramp.raw");
+    let n = 40usize;
+    let bytes: Vec<u8> = (0..n * n * n)
+        .flat_map(|i| ((i % n + i / n % n + i / (n * n)) as u16).to_le_bytes())
+        .collect();
+    std::fs::write(&path, bytes).unwrap();
+    let mut h = real_harness(vec![path]);
+    h.run_steps(4);
+    // The file size (40³ two-byte voxels) fits one cube; the dialog says what it guessed.
+    h.get_by_label_contains("guessed from the file size (128000 bytes): 40 × 40 × 40 i16");
+    assert_eq!(h.get_by_label("nx").value().as_deref(), Some("40"));
+
+    replace_text(&mut h, "nx", "50");
+    h.get_by_label("Open raw file").click();
+    step_until(&mut h, "the open to fail", |a| {
+        a.notifications().iter().any(|n| n.is_error)
+    });
+    h.run_steps(4);
+    // Back, with the layout entered.
+    assert_eq!(h.get_by_label("nx").value().as_deref(), Some("50"));
+    replace_text(&mut h, "nx", "40");
+    h.get_by_label("Open raw file").click();
+    step_until(&mut h, "the raw volume", |a| {
+        a.data().is_some_and(|d| d.dims == [n, n, n])
+    });
+    let (lo, hi) = h.state().data().unwrap().value_range;
+    assert_eq!((lo, hi), (0.0, 3.0 * (n as f64 - 1.0)));
+}

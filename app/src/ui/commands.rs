@@ -12,7 +12,9 @@ use std::time::Instant;
 use super::app::ViewerApp;
 use super::backend::LoadedData;
 use super::file_browser::{BrowsePurpose, FileBrowser};
-use super::files::{FileGroup, absolute_path, group_files, is_session_file, needs_raw_dialog};
+use super::files::{
+    FileGroup, absolute_path, group_files, guess_raw_layout, is_session_file, needs_raw_dialog,
+};
 use super::jobs::Job;
 use super::panels;
 use super::runtime::{RawDialog, SeriesDialog};
@@ -103,7 +105,15 @@ impl ViewerApp {
                 files,
             } => {
                 self.state.raw_layout = Some(layout.clone());
-                self.start_load(Some(path), Some(layout), files);
+                self.start_load(Some(path.clone()), Some(layout.clone()), files.clone());
+                // After start_load (which forgets any earlier retry).
+                self.rt.raw_retry = Some(RawDialog {
+                    path,
+                    layout,
+                    files,
+                    note: "as entered".to_string(),
+                    error: None,
+                });
             }
             Command::ShowFile(i) => {
                 if let Some(p) = self.state.files.get(i).cloned() {
@@ -311,11 +321,13 @@ impl ViewerApp {
                 })
             });
         } else if needs_raw_dialog(&path) {
-            let layout = self.state.raw_layout.clone().unwrap_or_default();
+            let (layout, note) = guess_raw_layout(&path);
             self.rt.raw_dialog = Some(RawDialog {
                 path,
                 layout,
                 files,
+                note,
+                error: None,
             });
         } else {
             self.start_load(Some(path), None, files);

@@ -53,6 +53,10 @@ pub struct RawDialog {
     pub layout: RawLayoutState,
     /// What the session's file list becomes when the open succeeds.
     pub files: Option<Vec<PathBuf>>,
+    /// Where the starting layout came from (the sidecar, or a guess from the file size).
+    pub note: String,
+    /// Why the last open with this dialog's layout failed (the dialog comes back with it).
+    pub error: Option<String>,
 }
 
 /// The DICOM series picker while it is open: a folder (or DICOMDIR, or file) of several
@@ -86,6 +90,9 @@ pub struct Runtime {
     /// When recent frames arrived (the status bar's frames/s).
     pub shown_times: VecDeque<Instant>,
     pub raw_dialog: Option<RawDialog>,
+    /// The raw dialog whose layout is being opened: shown again, with the error, if the
+    /// open fails.
+    pub raw_retry: Option<RawDialog>,
     /// The in-app file browser (File → Open…, sessions) while it is open.
     pub file_browser: Option<super::file_browser::FileBrowser>,
     pub series_dialog: Option<SeriesDialog>,
@@ -115,6 +122,7 @@ impl Default for Runtime {
             shown: None,
             shown_times: VecDeque::new(),
             raw_dialog: None,
+            raw_retry: None,
             file_browser: None,
             series_dialog: None,
             screenshot_window: false,

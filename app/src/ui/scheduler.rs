@@ -60,12 +60,21 @@ impl ViewerApp {
         match done {
             Finished::Loaded { files, result } => match result.and_then(|r| r) {
                 Ok(data) => {
+                    self.rt.raw_retry = None;
                     if let Some(files) = files {
                         self.state.files = files;
                     }
                     self.install_data(data);
                 }
-                Err(e) => self.notify(e, true),
+                Err(e) => {
+                    // A raw layout that did not fit: the dialog comes back with the layout
+                    // entered and the reason, to correct it.
+                    if let Some(mut dialog) = self.rt.raw_retry.take() {
+                        dialog.error = Some(e.clone());
+                        self.rt.raw_dialog = Some(dialog);
+                    }
+                    self.notify(e, true);
+                }
             },
             Finished::FieldSwitched { name, result } => match result.and_then(|r| r) {
                 Ok(info) => self.field_switched(name, info),
@@ -262,6 +271,8 @@ impl ViewerApp {
             || "generating the default sample".to_string(),
             |p| format!("loading {}", p.display()),
         );
+        // Another open replaces a raw open whose dialog would come back on failure.
+        self.rt.raw_retry = None;
         let mut choices = self.open_choices();
         choices.dicom_series = series;
         let job = Job::spawn(label, self.repaint_fn(), move |control| match path {

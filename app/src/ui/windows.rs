@@ -23,6 +23,10 @@ impl ViewerApp {
                 .collapsible(false)
                 .show(ctx, |ui| {
                     ui.label(dialog.path.display().to_string());
+                    ui.label(egui::RichText::new(&dialog.note).small().weak());
+                    if let Some(e) = &dialog.error {
+                        ui.colored_label(Color32::from_rgb(255, 120, 100), e);
+                    }
                     confirmed = panels::raw_layout_ui(ui, &mut dialog.layout);
                 });
             if confirmed {
