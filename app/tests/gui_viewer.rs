@@ -1367,3 +1367,32 @@ fn the_raw_dialog_guesses_the_layout_and_comes_back_after_an_error() {
     let (lo, hi) = h.state().data().unwrap().value_range;
     assert_eq!((lo, hi), (0.0, 3.0 * (n as f64 - 1.0)));
 }
+
+/// Every text on screen, the colour picker's included, has glyphs in the viewer's fonts (a
+/// missing one is drawn as an empty box).
+#[test]
+fn every_text_shown_has_glyphs_in_the_fonts() {
+    let (mut h, _rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    h.get_by_role_and_label(Role::ColorWell, "Color").click();
+    h.run_steps(3);
+    let texts: Vec<String> = h
+        .query_all(egui_kittest::kittest::by().predicate(|_| true))
+        .flat_map(|n| {
+            let node = egui_kittest::kittest::NodeT::accesskit_node(&n);
+            [node.label(), node.value()]
+        })
+        .flatten()
+        .collect();
+    assert!(
+        texts.iter().any(|t| t.starts_with("R ")),
+        "the picker is open"
+    );
+    let font = egui::FontId::proportional(14.0);
+    let missing: Vec<(char, String)> = texts
+        .iter()
+        .flat_map(|t| t.chars().map(move |c| (c, t.clone())))
+        .filter(|(c, _)| !h.ctx.fonts_mut(|f| f.has_glyph(&font, *c)))
+        .collect();
+    assert!(missing.is_empty(), "no glyph for {missing:?}");
+}
