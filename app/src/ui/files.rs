@@ -241,7 +241,7 @@ pub fn needs_raw_dialog(path: &Path) -> bool {
 
 /// Voxel types tried when guessing a raw layout, in order: 8-bit, 16-bit signed (CT), 32-bit
 /// float, 64-bit float.
-const GUESS_TYPES: [volume_core::VoxelType; 4] = [
+pub const GUESS_TYPES: [volume_core::VoxelType; 4] = [
     volume_core::VoxelType::U8,
     volume_core::VoxelType::I16,
     volume_core::VoxelType::F32,
@@ -249,7 +249,7 @@ const GUESS_TYPES: [volume_core::VoxelType; 4] = [
 ];
 
 /// Slice widths tried after cubes (square slices of common scanner and simulation sizes).
-const GUESS_SLICE_SIDES: [usize; 7] = [512, 256, 1024, 128, 64, 2048, 32];
+pub const GUESS_SLICE_SIDES: [usize; 7] = [512, 256, 1024, 128, 64, 2048, 32];
 
 /// Every `[nx, ny, nz]` × voxel type that `bytes` of voxels fill exactly: cubes first, then
 /// square slices of [`GUESS_SLICE_SIDES`] with 1 to 4·side slices; each type in
