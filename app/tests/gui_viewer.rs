@@ -1050,7 +1050,9 @@ fn a_dicom_folder_of_two_series_offers_a_picker_and_opens_the_pick() {
     step_until(&mut h, "the MR series", |a| a.data().is_some());
     let data = h.state().data().unwrap();
     assert_eq!(data.dims, [5, 5, 3]);
-    assert_eq!(data.path.as_deref(), Some(folder.as_path()));
+    // Opened paths are made absolute and canonical (the `..` of the fixture path resolved).
+    let canonical = std::fs::canonicalize(&folder).unwrap();
+    assert_eq!(data.path.as_deref(), Some(canonical.as_path()));
     assert!(
         h.query_by_label("DICOM series").is_none(),
         "the picker closed"
