@@ -66,6 +66,8 @@ impl Gate {
 struct Recorder {
     log: Mutex<Log>,
     gate: Gate,
+    /// The render time frames report (at least 1 ms), to stand for a slow renderer.
+    render_time: Mutex<Duration>,
 }
 
 struct RecordingScene {
@@ -113,7 +115,7 @@ impl PreparedScene for RecordingScene {
             width: w,
             height: h,
             rgba8: px.repeat((w * h) as usize),
-            elapsed: Duration::from_millis(1),
+            elapsed: (*self.recorder.render_time.lock().unwrap()).max(Duration::from_millis(1)),
             rays: u64::from(w * h),
             lod_level: None,
         }))
@@ -409,6 +411,48 @@ fn playback_advances_and_loops() {
     }
 }
 
+/// Playback draws full frames when they keep up with the playback rate, and 1/4-resolution
+/// previews only when the last full frame took longer than a step lasts.
+#[test]
+fn playback_draws_full_frames_when_they_keep_up() {
+    // (reported full-frame time, playback rate, the resolution scale expected while playing)
+    for (render_time, fps, expected_scale) in [(1, 10.0, 1), (400, 10.0, 4)] {
+        let (mut h, rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
+        step_until(&mut h, "the series", |a| a.data().is_some());
+        // A full frame of a moved view measures the render time (the harness may have drawn
+        // the first frame before the time was set).
+        *rec.render_time.lock().unwrap() = Duration::from_millis(render_time);
+        h.state_mut().state.camera.orbit(10.0, 0.0);
+        settle(&mut h);
+        h.state_mut().state.time.fps = fps;
+        h.get_by_label("Play").click();
+        h.run_steps(1);
+        let mut scales = Vec::new();
+        let start = Instant::now();
+        // Frames of steps 1 to 3 are drawn during playback.
+        while scales.len() < 3 {
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "playback stalled"
+            );
+            if let Some(f) = h.state().shown_frame()
+                && f.request.step > 0
+                && scales
+                    .last()
+                    .is_none_or(|(step, _)| *step != f.request.step)
+            {
+                scales.push((f.request.step, f.request.scale));
+            }
+            h.step();
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(
+            scales.iter().all(|(_, scale)| *scale == expected_scale),
+            "full frames reported to take {render_time} ms at {fps} steps/s: {scales:?}"
+        );
+    }
+}
+
 #[test]
 fn the_ui_keeps_running_while_a_scene_builds() {
     let recorder = Arc::new(Recorder::default());
@@ -674,6 +718,10 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
         let shown = &app.shown_frame().unwrap().request;
         assert_eq!(shown.step, step, "a frame of the new step arrived");
         assert!(shown.options.smooth_normals);
+        // The data section names the step shown (not the step the mesh was opened at).
+        h.run_steps(1);
+        h.get_by_label_contains(&format!("step {step} of 4"));
+        let app = h.state();
         // Independent truth: the same step opened from scratch (a fresh BVH build).
         let truth = open_scene(
             &pattern,
@@ -767,6 +815,11 @@ fn an_isot_file_refines_to_the_finest_level_with_a_visible_indicator() {
     // The indicator shows the finest level.
     h.run_steps(1);
     h.get_by_label_contains(&format!("LOD level {count}/{count}"));
+    // So does the data section, with the status bar's resident memory.
+    let mib = h.state().lod_status().unwrap().resident_bytes as f64 / f64::from(1u32 << 20);
+    h.get_by_label_contains(&format!(
+        "level {count}/{count} loaded, {mib:.1} MiB resident"
+    ));
     // At the finest level the out-of-core frame equals the in-core render of the volume.
     let truth = AnyScene::Grid(GridData::from_volume(
         std::path::Path::new("in-core"),
@@ -845,6 +898,9 @@ fn the_point_array_picker_redraws_with_the_chosen_array() {
     );
     let shown = &app.shown_frame().unwrap().request;
     assert_eq!(shown.field.as_deref(), Some("gaussians"));
+    // The data section names the drawn array.
+    h.get_by_label_contains("field \"gaussians\"");
+    let app = h.state();
     assert_eq!(
         app.stats.scenes_built, 1,
         "a field switch is a refit, not a rebuild"
@@ -994,7 +1050,9 @@ fn a_dicom_folder_of_two_series_offers_a_picker_and_opens_the_pick() {
     step_until(&mut h, "the MR series", |a| a.data().is_some());
     let data = h.state().data().unwrap();
     assert_eq!(data.dims, [5, 5, 3]);
-    assert_eq!(data.path.as_deref(), Some(folder.as_path()));
+    // Opened paths are made absolute and canonical (the `..` of the fixture path resolved).
+    let canonical = std::fs::canonicalize(&folder).unwrap();
+    assert_eq!(data.path.as_deref(), Some(canonical.as_path()));
     assert!(
         h.query_by_label("DICOM series").is_none(),
         "the picker closed"
@@ -1057,4 +1115,286 @@ fn a_tiff_stack_takes_its_spacing_from_the_data_section() {
         "{e:?}"
     );
     assert_eq!(h.state().state.tiff_spacing, Some([0.5, 1.0, 2.5]));
+}
+
+// ---- typed numbers, keyboard refinement, the time bar, absolute paths ------------------
+
+/// Steps the app the way eframe's event loop does: a frame only when egui asked for one
+/// (an input event, `request_repaint` from a job, or `request_repaint_after` coming due),
+/// for `duration`. [`step_until`] steps continuously, which hides a missing repaint request.
+fn run_like_event_loop(h: &mut Harness<'_, ViewerApp>, duration: Duration) {
+    let wake_at: Arc<Mutex<Option<Instant>>> = Arc::new(Mutex::new(Some(Instant::now())));
+    let w = Arc::clone(&wake_at);
+    h.ctx.set_request_repaint_callback(move |info| {
+        let at = Instant::now() + info.delay.min(Duration::from_hours(1));
+        let mut wake = w.lock().unwrap();
+        *wake = Some(wake.map_or(at, |t| t.min(at)));
+    });
+    let end = Instant::now() + duration;
+    while Instant::now() < end {
+        let due = {
+            let mut wake = wake_at.lock().unwrap();
+            let due = wake.is_some_and(|t| t <= Instant::now());
+            if due {
+                *wake = None;
+            }
+            due
+        };
+        if due {
+            h.step();
+        } else {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+}
+
+/// Typing a number key by key (as `xdotool type` and people do) applies it when the edit
+/// ends: applied per keystroke, the "0" of "0.3" was clamped to the range's minimum and its
+/// text replaced what was being typed.
+#[test]
+fn a_number_typed_key_by_key_applies_when_the_edit_ends() {
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    let (lo, hi) = h.state().data().unwrap().value_range;
+    let text = format!("{:.4}", lo + 0.3 * (hi - lo));
+    let typed: f64 = text.parse().unwrap();
+    // The test means something only if a prefix of the text lies outside the range.
+    let first: f64 = text[..1].parse().unwrap();
+    assert!(first < lo || first > hi, "{text} in {lo} … {hi}");
+
+    h.get_by_label("Value 1").focus();
+    h.run_steps(2);
+    for c in text.chars() {
+        h.get_by_label("Value 1").type_text(&c.to_string());
+        h.run_steps(1);
+    }
+    h.key_press(egui::Key::Enter);
+    h.run_steps(3);
+    let iso = h.state().state.surfaces[0].isovalue;
+    assert!(
+        (iso - typed).abs() <= 1e-12 * typed.abs().max(1.0),
+        "typed {text}, got {iso}"
+    );
+
+    // The screenshot size (clamped to 16 …): "1920" typed key by key is 1920, not 16 or 192.
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Screenshot…").click();
+    h.run_steps(2);
+    h.get_by_label("Width").focus();
+    h.run_steps(2);
+    for c in "1234".chars() {
+        h.get_by_label("Width").type_text(&c.to_string());
+        h.run_steps(1);
+    }
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    assert_eq!(h.state().prefs.screenshot_size[0], 1234);
+}
+
+/// Arrow keys, `R` and `-` move the view at 1/4 resolution; once the view settles the
+/// full-resolution frame follows without any further input (no mouse move needed).
+#[test]
+fn keyboard_moves_are_refined_without_further_input() {
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    // Keys act on the view while the pointer is over it (the side panel is on the left).
+    h.hover_at(egui::pos2(900.0, 400.0));
+    h.run_steps(1);
+    for key in [egui::Key::ArrowLeft, egui::Key::R, egui::Key::Minus] {
+        let before = h.state().state.camera;
+        h.key_press(key);
+        h.step();
+        assert_ne!(h.state().state.camera, before, "{key:?} moved the view");
+        // The coarse frame of the moved view arrives while the view counts as moving.
+        step_until(&mut h, "a coarse frame", |a| {
+            a.shown_frame().is_some_and(|f| {
+                f.request.scale > 1
+                    && a.desired_request(f.request.scale).as_ref() == Some(&f.request)
+            })
+        });
+        run_like_event_loop(&mut h, Duration::from_millis(800));
+        let app = h.state();
+        let shown = &app.shown_frame().unwrap().request;
+        assert_eq!(
+            shown.scale, 1,
+            "{key:?}: the full-resolution frame followed"
+        );
+        assert_eq!(Some(shown), app.desired_request(1).as_ref());
+    }
+}
+
+/// The recent files and a saved session hold absolute paths: a relative one names another
+/// file, or none, from another working directory.
+#[test]
+fn recent_files_and_sessions_hold_absolute_paths() {
+    // The test backend opens any path ending in `series.test`; the file need not exist.
+    let (mut h, _rec) = harness(vec![PathBuf::from("series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    let cwd = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
+    let expected = cwd.join("series.test");
+    assert_eq!(h.state().prefs.recent_files.first(), Some(&expected));
+    assert_eq!(h.state().state.files, vec![expected.clone()]);
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    h.state_mut().push(Command::SaveSession(session.clone()));
+    wait_for_saved_session(&mut h);
+    assert_eq!(ViewerState::load(&session).unwrap().files, vec![expected]);
+}
+
+/// The time bar fits a 1280-pixel-wide window: every control, the playback rate last among
+/// them before the step slider, is inside the window.
+#[test]
+fn the_time_bar_fits_a_1280_pixel_window() {
+    let recorder = Arc::new(Recorder::default());
+    let backend = Arc::new(TestBackend {
+        recorder: Arc::clone(&recorder),
+    });
+    let files = vec![PathBuf::from("/virtual/series.test")];
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .build_eframe(move |cc| ViewerApp::with_backend(&cc.egui_ctx, backend, files));
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    h.run_steps(3);
+    for (role, label) in [
+        (Role::Slider, "Playback fps"),
+        (Role::Slider, "Time step"),
+        (Role::CheckBox, "Loop"),
+        (Role::Button, "Last"),
+    ] {
+        let rect = h.get_by_role_and_label(role, label).rect();
+        assert!(
+            rect.max.x <= 1280.0 && rect.width() > 10.0,
+            "{label} at {rect:?} in a 1280-pixel window"
+        );
+    }
+}
+
+/// File → Open… and Save session… work without a desktop portal: the in-app browser takes a
+/// typed folder, a click selects a file and Open opens it; Save session… writes the session
+/// under the name typed, in the shown file's folder.
+#[test]
+fn open_and_save_session_go_through_the_in_app_browser() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = std::fs::canonicalize(dir.path()).unwrap();
+    // The test backend opens any path ending in `series.test`.
+    std::fs::write(folder.join("series.test"), b"").unwrap();
+    std::fs::create_dir(folder.join("sub")).unwrap();
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Open…").click();
+    // A window is laid out invisibly in its first frame.
+    h.run_steps(3);
+    h.get_by_label("Folder").focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label("Folder")
+        .type_text(&folder.display().to_string());
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    // Folders first (with a slash), then files with their size.
+    h.get_by_label("sub/");
+    h.get_by_label_contains("series.test").click();
+    h.run_steps(2);
+    h.get_by_label("Open").click();
+    h.run_steps(2);
+    step_until(&mut h, "series.test", |a| {
+        a.data().is_some_and(|d| d.name == "series.test")
+    });
+    assert_eq!(h.state().state.files, vec![folder.join("series.test")]);
+
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Save session…").click();
+    h.run_steps(3);
+    h.get_by_label("File name").focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label("File name").type_text("mine");
+    h.run_steps(2);
+    h.get_by_label("Save").click();
+    wait_for_saved_session(&mut h);
+    let saved = ViewerState::load(&folder.join("mine.json")).unwrap();
+    assert_eq!(saved.files, vec![folder.join("series.test")]);
+}
+
+/// Types `text` into the field labelled `label`, replacing what it holds, and presses Enter.
+fn replace_text(h: &mut Harness<'_, ViewerApp>, label: &str, text: &str) {
+    h.get_by_label(label).focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label(label).type_text(text);
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+}
+
+/// A raw file without a sidecar: the layout dialog starts from a guess (the file size fits
+/// one cube) and says so; a layout that does not fit the file brings the dialog back with the
+/// error and the layout entered, and the corrected layout opens.
+#[test]
+fn the_raw_dialog_guesses_the_layout_and_comes_back_after_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ramp.raw");
+    let n = 40usize;
+    let bytes: Vec<u8> = (0..n * n * n)
+        .flat_map(|i| ((i % n + i / n % n + i / (n * n)) as u16).to_le_bytes())
+        .collect();
+    std::fs::write(&path, bytes).unwrap();
+    let mut h = real_harness(vec![path]);
+    h.run_steps(4);
+    // The file size (40³ two-byte voxels) fits one cube; the dialog says what it guessed.
+    h.get_by_label_contains("guessed from the file size (128000 bytes): 40 × 40 × 40 i16");
+    assert_eq!(h.get_by_label("nx").value().as_deref(), Some("40"));
+
+    replace_text(&mut h, "nx", "50");
+    h.get_by_label("Open raw file").click();
+    step_until(&mut h, "the open to fail", |a| {
+        a.notifications().iter().any(|n| n.is_error)
+    });
+    h.run_steps(4);
+    // Back, with the layout entered.
+    assert_eq!(h.get_by_label("nx").value().as_deref(), Some("50"));
+    replace_text(&mut h, "nx", "40");
+    h.get_by_label("Open raw file").click();
+    step_until(&mut h, "the raw volume", |a| {
+        a.data().is_some_and(|d| d.dims == [n, n, n])
+    });
+    let (lo, hi) = h.state().data().unwrap().value_range;
+    assert_eq!((lo, hi), (0.0, 3.0 * (n as f64 - 1.0)));
+}
+
+/// Every text on screen, the colour picker's included, has glyphs in the viewer's fonts (a
+/// missing one is drawn as an empty box).
+#[test]
+fn every_text_shown_has_glyphs_in_the_fonts() {
+    let (mut h, _rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some());
+    h.get_by_role_and_label(Role::ColorWell, "Color").click();
+    h.run_steps(3);
+    let texts: Vec<String> = h
+        .query_all(egui_kittest::kittest::by().predicate(|_| true))
+        .flat_map(|n| {
+            let node = egui_kittest::kittest::NodeT::accesskit_node(&n);
+            [node.label(), node.value()]
+        })
+        .flatten()
+        .collect();
+    assert!(
+        texts.iter().any(|t| t.starts_with("R ")),
+        "the picker is open"
+    );
+    let font = egui::FontId::proportional(14.0);
+    let missing: Vec<(char, String)> = texts
+        .iter()
+        .flat_map(|t| t.chars().map(move |c| (c, t.clone())))
+        .filter(|(c, _)| !h.ctx.fonts_mut(|f| f.has_glyph(&font, *c)))
+        .collect();
+    assert!(missing.is_empty(), "no glyph for {missing:?}");
 }

@@ -126,6 +126,13 @@ pub trait PreparedScene: Send + Sync {
         None
     }
 
+    /// The summary line of what the scene holds now (kind and size, the drawn point array,
+    /// the step, out-of-core levels and memory); `None` when it never changes (the
+    /// default). Never blocks.
+    fn summary(&self) -> Option<String> {
+        None
+    }
+
     /// Out-of-core loading progress; `None` for in-core data. Never blocks.
     fn lod_status(&self) -> Option<LodStatus> {
         None
@@ -160,7 +167,8 @@ pub struct LoadedData {
     pub name: String,
     pub path: Option<PathBuf>,
     pub kind: DataKindLabel,
-    /// One line: dims and type, tet and point counts, levels.
+    /// One line: dims and type, tet and point counts, point array, step, levels; refreshed
+    /// from [`PreparedScene::summary`] every frame, so it never disagrees with the scene.
     pub summary: String,
     /// Grid dims (`[0; 3]` for meshes).
     pub dims: [usize; 3],

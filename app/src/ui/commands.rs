@@ -11,7 +11,10 @@ use std::time::Instant;
 
 use super::app::ViewerApp;
 use super::backend::LoadedData;
-use super::files::{FileGroup, group_files, is_session_file, needs_raw_dialog};
+use super::file_browser::{BrowsePurpose, FileBrowser};
+use super::files::{
+    FileGroup, absolute_path, group_files, guess_raw_layout, is_session_file, needs_raw_dialog,
+};
 use super::jobs::Job;
 use super::panels;
 use super::runtime::{RawDialog, SeriesDialog};
@@ -46,8 +49,9 @@ pub enum Command {
     ShowFile(usize),
     /// Tet meshes: draws another point array (a value refit, no rebuild).
     SetField(String),
+    /// The file browser for data files.
     PickFiles,
-    /// The folder dialog (a DICOM series folder).
+    /// The file browser for a folder (a DICOM series folder).
     PickFolder,
     AddSurface,
     RemoveSurface(usize),
@@ -89,14 +93,27 @@ impl ViewerApp {
         match cmd {
             Command::OpenDefault => self.start_load(None, None, Some(Vec::new())),
             Command::SetField(name) => self.start_field_switch(name),
-            Command::OpenFiles(files) => self.open_files(&files),
+            Command::OpenFiles(files) => {
+                // Absolute from here on: the session's file list and the recent files must
+                // name the same files from any working directory.
+                let files: Vec<PathBuf> = files.iter().map(|f| absolute_path(f)).collect();
+                self.open_files(&files);
+            }
             Command::OpenRaw {
                 path,
                 layout,
                 files,
             } => {
                 self.state.raw_layout = Some(layout.clone());
-                self.start_load(Some(path), Some(layout), files);
+                self.start_load(Some(path.clone()), Some(layout.clone()), files.clone());
+                // After start_load (which forgets any earlier retry).
+                self.rt.raw_retry = Some(RawDialog {
+                    path,
+                    layout,
+                    files,
+                    note: "as entered".to_string(),
+                    error: None,
+                });
             }
             Command::ShowFile(i) => {
                 if let Some(p) = self.state.files.get(i).cloned() {
@@ -120,18 +137,8 @@ impl ViewerApp {
                     files,
                 });
             }
-            Command::PickFiles => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .set_title("Open volume data")
-                    .pick_files()
-                    .map(Command::OpenFiles)
-            }),
-            Command::PickFolder => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .set_title("Open a folder (DICOM series)")
-                    .pick_folder()
-                    .map(|dir| Command::OpenFiles(vec![dir]))
-            }),
+            Command::PickFiles => self.open_browser(BrowsePurpose::OpenData),
+            Command::PickFolder => self.open_browser(BrowsePurpose::OpenFolder),
             Command::AddSurface => {
                 if let Some(d) = &self.rt.data {
                     let s = panels::new_surface(&self.state, d);
@@ -172,19 +179,8 @@ impl ViewerApp {
             }
             Command::SaveSession(p) => self.start_session_save(p),
             Command::LoadSession(p) => self.start_session_load(p),
-            Command::PickSaveSession => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .add_filter("Isoscope session", &["json"])
-                    .set_file_name("session.json")
-                    .save_file()
-                    .map(Command::SaveSession)
-            }),
-            Command::PickLoadSession => self.start_dialog(|| {
-                rfd::FileDialog::new()
-                    .add_filter("Isoscope session", &["json"])
-                    .pick_file()
-                    .map(Command::LoadSession)
-            }),
+            Command::PickSaveSession => self.open_browser(BrowsePurpose::SaveSession),
+            Command::PickLoadSession => self.open_browser(BrowsePurpose::OpenSession),
             Command::Screenshot {
                 path,
                 width,
@@ -211,9 +207,17 @@ impl ViewerApp {
         }
     }
 
-    /// Runs a native file dialog on its own thread; its answer is queued as a command.
-    fn start_dialog(&mut self, dialog: impl FnOnce() -> Option<Command> + Send + 'static) {
-        self.start_asking("file dialog", dialog);
+    /// Opens the in-app file browser, in the shown file's folder (else the working
+    /// directory).
+    fn open_browser(&mut self, purpose: BrowsePurpose) {
+        let folder = self
+            .rt
+            .data
+            .as_ref()
+            .and_then(|d| d.path.as_ref())
+            .and_then(|p| p.parent())
+            .map(std::path::Path::to_path_buf);
+        self.rt.file_browser = Some(FileBrowser::new(purpose, folder));
     }
 
     /// Runs `ask` (a dialog, or a listing that decides what to show next) on its own
@@ -317,11 +321,13 @@ impl ViewerApp {
                 })
             });
         } else if needs_raw_dialog(&path) {
-            let layout = self.state.raw_layout.clone().unwrap_or_default();
+            let (layout, note) = guess_raw_layout(&path);
             self.rt.raw_dialog = Some(RawDialog {
                 path,
                 layout,
                 files,
+                note,
+                error: None,
             });
         } else {
             self.start_load(Some(path), None, files);

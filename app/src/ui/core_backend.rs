@@ -145,6 +145,8 @@ pub struct CorePrepared {
     scene: RwLock<AnyScene>,
     /// Last out-of-core status, returned while the scene is locked for writing.
     lod: Mutex<Option<LodStatus>>,
+    /// Last summary line, returned while the scene is locked for writing.
+    summary: Mutex<Option<String>>,
 }
 
 #[allow(clippy::needless_pass_by_value)]
@@ -173,6 +175,7 @@ impl CorePrepared {
         Self {
             scene: RwLock::new(scene),
             lod: Mutex::new(None),
+            summary: Mutex::new(None),
         }
     }
 
@@ -249,6 +252,15 @@ impl PreparedScene for CorePrepared {
 
     fn value_info(&self) -> Option<ValueInfo> {
         self.scene.read().ok()?.data().value_info(HISTOGRAM_BINS)
+    }
+
+    fn summary(&self) -> Option<String> {
+        let mut cached = self.summary.lock().ok()?;
+        // Never wait for a writer: keep the last line while the scene is locked.
+        if let Ok(s) = self.scene.try_read() {
+            *cached = Some(s.describe());
+        }
+        cached.clone()
     }
 
     fn lod_status(&self) -> Option<LodStatus> {

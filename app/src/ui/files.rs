@@ -15,7 +15,7 @@ use std::collections::BTreeSet;
 use std::io::Read as _;
 use std::path::{Path, PathBuf};
 
-use super::state::ViewerState;
+use super::state::{RawLayoutState, ViewerState};
 use crate::scene::{SceneKind, detect_kind};
 
 /// How a set of files opens.
@@ -163,6 +163,25 @@ pub fn group_files(files: &[PathBuf]) -> FileGroup {
     }
 }
 
+/// `path` made absolute, so that the recent-files list and saved sessions name the same file
+/// from any working directory: canonical (symbolic links and `..` resolved) when it exists;
+/// a series pattern (`blob_*.nrrd`) or a missing file keeps its name under its canonical
+/// folder, else it is joined to the working directory.
+pub fn absolute_path(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let in_canonical_dir = path.file_name().and_then(|name| {
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+        std::fs::canonicalize(dir.unwrap_or(Path::new(".")))
+            .ok()
+            .map(|d| d.join(name))
+    });
+    in_canonical_dir
+        .or_else(|| std::path::absolute(path).ok())
+        .unwrap_or_else(|| path.to_path_buf())
+}
+
 /// Bytes of a `.json` file [`is_session_file`] reads at most: sessions are a few KiB, and
 /// serde writes `version` and `files` first.
 const SESSION_PROBE_BYTES: u64 = 64 * 1024;
@@ -229,6 +248,110 @@ pub fn needs_raw_dialog(path: &Path) -> bool {
     is_raw && formats::raw::sidecar_path(path).is_none()
 }
 
+/// Voxel types tried when guessing a raw layout, in order: 8-bit, 16-bit signed (CT), 32-bit
+/// float, 64-bit float.
+pub const GUESS_TYPES: [volume_core::VoxelType; 4] = [
+    volume_core::VoxelType::U8,
+    volume_core::VoxelType::I16,
+    volume_core::VoxelType::F32,
+    volume_core::VoxelType::F64,
+];
+
+/// Slice widths tried after cubes (square slices of common scanner and simulation sizes).
+pub const GUESS_SLICE_SIDES: [usize; 7] = [512, 256, 1024, 128, 64, 2048, 32];
+
+/// Every `[nx, ny, nz]` × voxel type that `bytes` of voxels fill exactly: cubes first, then
+/// square slices of [`GUESS_SLICE_SIDES`] with 1 to 4·side slices; each type in
+/// [`GUESS_TYPES`] order.
+pub fn raw_shapes_for_size(bytes: u64) -> Vec<([usize; 3], volume_core::VoxelType)> {
+    let mut fits = Vec::new();
+    for t in GUESS_TYPES {
+        let size = t.size_bytes() as u64;
+        if bytes == 0 || !bytes.is_multiple_of(size) {
+            continue;
+        }
+        let voxels = bytes / size;
+        let side = (voxels as f64).cbrt().round() as u64;
+        if side >= 2 && side * side * side == voxels {
+            fits.push(([side as usize; 3], t));
+        }
+    }
+    for t in GUESS_TYPES {
+        let size = t.size_bytes() as u64;
+        if !bytes.is_multiple_of(size) {
+            continue;
+        }
+        let voxels = bytes / size;
+        for side in GUESS_SLICE_SIDES {
+            let slice = (side * side) as u64;
+            let slices = voxels / slice;
+            let shape = ([side, side, slices as usize], t);
+            if voxels.is_multiple_of(slice)
+                && (1..=4 * side as u64).contains(&slices)
+                && !fits.contains(&shape)
+            {
+                fits.push(shape);
+            }
+        }
+    }
+    fits
+}
+
+/// The raw dialog's starting layout for `path`, and a sentence saying where it came from:
+/// the file's sidecar (`NAME.json` or `NAME.raw.json`) when it parses, else the first of
+/// [`raw_shapes_for_size`] (little-endian, no header, unit spacing), else the default. Reads
+/// the file's size and at most the small sidecar.
+pub fn guess_raw_layout(path: &Path) -> (RawLayoutState, String) {
+    if let Some(sidecar) = formats::raw::sidecar_path(path)
+        && let Ok(l) = formats::raw::RawLayout::from_sidecar(&sidecar)
+    {
+        let layout = RawLayoutState {
+            dims: l.dims,
+            voxel_type: l.voxel_type.to_string(),
+            little_endian: l.endian == formats::raw::Endian::Little,
+            header_bytes: l.header_bytes,
+            spacing: l.spacing,
+        };
+        let name = sidecar.file_name().unwrap_or_default().to_string_lossy();
+        return (layout, format!("from the sidecar {name}"));
+    }
+    let Ok(bytes) = std::fs::metadata(path).map(|m| m.len()) else {
+        return (
+            RawLayoutState::default(),
+            "the file cannot be read: enter the layout".to_string(),
+        );
+    };
+    let shape = |(d, t): &([usize; 3], volume_core::VoxelType)| {
+        format!("{} × {} × {} {t}", d[0], d[1], d[2])
+    };
+    let fits = raw_shapes_for_size(bytes);
+    let Some(first) = fits.first() else {
+        return (
+            RawLayoutState::default(),
+            format!(
+                "the file size ({bytes} bytes) fits no common shape (a header?): enter the layout"
+            ),
+        );
+    };
+    let layout = RawLayoutState {
+        dims: first.0,
+        voxel_type: first.1.to_string(),
+        ..RawLayoutState::default()
+    };
+    let others: Vec<String> = fits[1..].iter().take(3).map(shape).collect();
+    let also = if others.is_empty() {
+        String::new()
+    } else {
+        format!("; also fits {}", others.join(", "))
+    };
+    let note = format!(
+        "guessed from the file size ({bytes} bytes): {}, little-endian, no header{also}. \
+         Check before opening.",
+        shape(first)
+    );
+    (layout, note)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -242,6 +365,71 @@ mod tests {
                 p
             })
             .collect()
+    }
+
+    #[test]
+    fn paths_become_absolute_from_any_working_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = touch(dir.path(), &["a.nrrd"]).remove(0);
+        let canonical_dir = std::fs::canonicalize(dir.path()).unwrap();
+        // `..` and a symbolic-link-free detour resolve to the canonical file.
+        let detour = dir
+            .path()
+            .join("..")
+            .join(dir.path().file_name().unwrap())
+            .join("a.nrrd");
+        assert_eq!(absolute_path(&detour), canonical_dir.join("a.nrrd"));
+        assert_eq!(absolute_path(&file), canonical_dir.join("a.nrrd"));
+        // A pattern (no such file): its name under the canonical folder.
+        let pattern = dir.path().join("blob_*.nrrd");
+        assert_eq!(absolute_path(&pattern), canonical_dir.join("blob_*.nrrd"));
+        // A relative name: under the working directory.
+        let cwd = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
+        assert_eq!(
+            absolute_path(Path::new("no-such-file.nrrd")),
+            cwd.join("no-such-file.nrrd")
+        );
+    }
+
+    #[test]
+    fn raw_layouts_are_guessed_from_the_sidecar_else_the_file_size() {
+        // 40³ two-byte voxels: not a u8 cube (128000 is not a cube), an i16 one.
+        let fits = raw_shapes_for_size(40 * 40 * 40 * 2);
+        assert_eq!(fits[0], ([40; 3], volume_core::VoxelType::I16));
+        // 256 × 256 × 108 i16 (no cube of any type).
+        let fits = raw_shapes_for_size(256 * 256 * 108 * 2);
+        assert!(
+            fits.contains(&([256, 256, 108], volume_core::VoxelType::I16)),
+            "{fits:?}"
+        );
+        // Every fit fills the size exactly.
+        for (d, t) in &fits {
+            assert_eq!(
+                (d[0] * d[1] * d[2] * t.size_bytes()) as u64,
+                256 * 256 * 108 * 2
+            );
+        }
+        assert!(raw_shapes_for_size(1_000_003).is_empty());
+
+        let dir = tempfile::tempdir().unwrap();
+        let raw = dir.path().join("v.raw");
+        std::fs::write(&raw, vec![0u8; 40 * 40 * 40 * 2]).unwrap();
+        let (layout, note) = guess_raw_layout(&raw);
+        assert_eq!((layout.dims, layout.voxel_type.as_str()), ([40; 3], "i16"));
+        assert!(note.contains("file size (128000 bytes)"), "{note}");
+        std::fs::write(
+            dir.path().join("v.json"),
+            r#"{"dims": [20, 40, 80], "type": "u16", "endian": "big", "spacing": [1, 2, 3]}"#,
+        )
+        .unwrap();
+        let (layout, note) = guess_raw_layout(&raw);
+        assert_eq!(layout.dims, [20, 40, 80]);
+        assert_eq!(
+            (layout.voxel_type.as_str(), layout.little_endian),
+            ("u16", false)
+        );
+        assert_eq!(layout.spacing, [1.0, 2.0, 3.0]);
+        assert!(note.contains("v.json"), "{note}");
     }
 
     #[test]

@@ -93,7 +93,8 @@ pub struct JobTable {
     /// A mesh's point-array switch (a value refit holding the scene's write lock).
     pub field: Slot<String, Result<ValueInfo, String>>,
     pub render: Slot<RenderTicket, Result<Option<RenderedImage>, String>>,
-    /// A native file dialog, answering with the command to run.
+    /// A question asked off the UI thread (listing a DICOM input's series), answering with
+    /// the command to run.
     pub dialog: Slot<(), Option<Command>>,
     /// Rendering and writing a PNG.
     pub screenshot: Slot<(), Result<PathBuf, String>>,
@@ -124,7 +125,7 @@ pub enum Finished {
         ticket: RenderTicket,
         result: Result<Result<Option<RenderedImage>, String>, String>,
     },
-    /// A file dialog closed (`None`: cancelled, or the dialog failed).
+    /// A question answered (`None`: nothing to do).
     Picked(Option<Command>),
     ScreenshotSaved(Result<PathBuf, String>),
     SessionSaved(Result<PathBuf, String>),

@@ -10,7 +10,8 @@
 //!   [`scheduler`] decides which jobs the state asks for and applies their results.
 //! - Commands: [`commands`] holds the user intents queued by panels, keys and dialogs.
 //! - Drawing: [`panels`] (side-panel sections), [`bars`] (menu and status bar),
-//!   [`viewport`] (the image, mouse and keys), [`windows`] (dialogs, notifications).
+//!   [`viewport`] (the image, mouse and keys), [`windows`] (dialogs, notifications),
+//!   [`file_browser`] (the in-app Open/Save browser: no desktop portal needed).
 //! - The library link: [`backend`] (open files, build scenes, render, behind a trait so
 //!   tests drive the real UI with a recording double) and [`core_backend`] (the real one).
 //! - Helpers: [`files`] (numbered files become a time series; session and raw probes),
@@ -24,6 +25,7 @@ pub mod bars;
 pub mod camera;
 pub mod commands;
 pub mod core_backend;
+pub mod file_browser;
 pub mod files;
 pub mod frame_upload;
 pub mod job_table;

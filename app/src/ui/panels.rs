@@ -48,15 +48,36 @@ impl Default for Prefs {
 pub const MAX_RECENT: usize = 10;
 
 impl Prefs {
+    /// Puts `path` first in the recent files, as an absolute path (a relative one would name
+    /// another file, or none, when the viewer starts in another working directory).
     pub fn remember(&mut self, path: &std::path::Path) {
-        self.recent_files.retain(|p| p != path);
-        self.recent_files.insert(0, path.to_path_buf());
+        let path = super::files::absolute_path(path);
+        self.recent_files.retain(|p| *p != path);
+        self.recent_files.insert(0, path);
         self.recent_files.truncate(MAX_RECENT);
     }
 }
 
+/// A numeric field that applies a typed value when the edit ends (Enter or focus lost).
+///
+/// egui applies typed text on every keystroke by default, and every field here clamps: a
+/// partial entry ("0" on the way to "0.3") was clamped into the range, and the clamped
+/// value's text replaced what was being typed. Every numeric field of the viewer is made
+/// here or by [`slider`] so that none of them does that.
+pub(super) fn number<Num: egui::emath::Numeric>(value: &mut Num) -> DragValue<'_> {
+    DragValue::new(value).update_while_editing(false)
+}
+
+/// A slider whose value field applies typed text when the edit ends (see [`number`]).
+pub(super) fn slider<Num: egui::emath::Numeric>(
+    value: &mut Num,
+    range: std::ops::RangeInclusive<Num>,
+) -> Slider<'_> {
+    Slider::new(value, range).update_while_editing(false)
+}
+
 /// A labelled numeric field (kittest and screen readers find it by `label`).
-fn labelled_drag(ui: &mut Ui, label: &str, widget: DragValue<'_>) -> egui::Response {
+pub(super) fn labelled_drag(ui: &mut Ui, label: &str, widget: DragValue<'_>) -> egui::Response {
     ui.horizontal(|ui| {
         let l = ui.label(label);
         ui.add(widget).labelled_by(l.id)
@@ -164,7 +185,7 @@ fn tiff_spacing_ui(
             labelled_drag(
                 ui,
                 &format!("Spacing {axis}"),
-                DragValue::new(&mut spacing[a])
+                number(&mut spacing[a])
                     .speed(0.01)
                     .range(1e-6..=1e6)
                     .max_decimals(6),
@@ -319,7 +340,7 @@ pub fn isosurface_ui(
             });
             ui.spacing_mut().slider_width = slider_width;
             ui.add(
-                Slider::new(&mut s.isovalue, lo..=hi)
+                slider(&mut s.isovalue, lo..=hi)
                     .text(format!("Isovalue {}", i + 1))
                     .show_value(false),
             );
@@ -328,11 +349,11 @@ pub fn isosurface_ui(
                 labelled_drag(
                     ui,
                     &format!("Value {}", i + 1),
-                    DragValue::new(&mut s.isovalue).speed(speed).max_decimals(9),
+                    number(&mut s.isovalue).speed(speed).max_decimals(9),
                 );
                 color_button(ui, "Color", &mut s.color);
             });
-            ui.add(Slider::new(&mut s.opacity, 0.0..=1.0).text(format!("Opacity {}", i + 1)));
+            ui.add(slider(&mut s.opacity, 0.0..=1.0).text(format!("Opacity {}", i + 1)));
         });
     }
     if let Some(i) = remove {
@@ -361,12 +382,8 @@ pub fn clip_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>
                 ui.radio_value(&mut b.keep, KeepSide::Outside, "Keep outside");
             });
             for (a, name) in AXES.iter().enumerate() {
-                ui.add(
-                    Slider::new(&mut b.min[a], 0.0..=1.0).text(format!("Box {} {name} min", i + 1)),
-                );
-                ui.add(
-                    Slider::new(&mut b.max[a], 0.0..=1.0).text(format!("Box {} {name} max", i + 1)),
-                );
+                ui.add(slider(&mut b.min[a], 0.0..=1.0).text(format!("Box {} {name} min", i + 1)));
+                ui.add(slider(&mut b.max[a], 0.0..=1.0).text(format!("Box {} {name} max", i + 1)));
                 if b.min[a] > b.max[a] {
                     b.max[a] = b.min[a];
                 }
@@ -391,13 +408,11 @@ pub fn clip_ui(ui: &mut Ui, state: &mut ViewerState, commands: &mut Vec<Command>
                     labelled_drag(
                         ui,
                         &format!("n{name}"),
-                        DragValue::new(&mut p.normal[a])
-                            .speed(0.01)
-                            .range(-1.0..=1.0),
+                        number(&mut p.normal[a]).speed(0.01).range(-1.0..=1.0),
                     );
                 }
             });
-            ui.add(Slider::new(&mut p.offset, -1.0..=1.0).text(format!("Plane {} offset", i + 1)));
+            ui.add(slider(&mut p.offset, -1.0..=1.0).text(format!("Plane {} offset", i + 1)));
         });
         ui.separator();
     }
@@ -443,10 +458,10 @@ pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState, kind: Option<Data
             });
         ui.label(egui::RichText::new(o.intersector.note()).small().weak());
     }
-    ui.add(Slider::new(&mut o.max_layers, 1..=16).text("Transparency layers"));
+    ui.add(slider(&mut o.max_layers, 1..=16).text("Transparency layers"));
     ui.checkbox(&mut o.shadows, "Shadows");
-    ui.add(Slider::new(&mut o.light_azimuth_deg, -180.0..=180.0).text("Light azimuth °"));
-    ui.add(Slider::new(&mut o.light_elevation_deg, -89.0..=89.0).text("Light elevation °"));
+    ui.add(slider(&mut o.light_azimuth_deg, -180.0..=180.0).text("Light azimuth °"));
+    ui.add(slider(&mut o.light_elevation_deg, -89.0..=89.0).text("Light elevation °"));
     color_button(ui, "Background", &mut o.background);
 }
 
@@ -459,7 +474,7 @@ pub fn camera_ui(
 ) {
     view_side_buttons(ui, frame, commands);
     ui.checkbox(&mut state.render.orientation_marker, "Orientation marker");
-    ui.add(Slider::new(&mut state.camera.vfov_deg, 10.0..=90.0).text("Field of view °"));
+    ui.add(slider(&mut state.camera.vfov_deg, 10.0..=90.0).text("Field of view °"));
     ui.checkbox(&mut state.camera.orthographic, "Orthographic");
     ui.horizontal(|ui| {
         if ui.button("Reset view").clicked() {
@@ -521,6 +536,9 @@ pub fn view_side_buttons(ui: &mut Ui, frame: volume_core::WorldFrame, commands: 
     });
 }
 
+/// Width beside the time-step slider's track: its value field and its "Time step" label.
+const TIME_SLIDER_EXTRAS_PX: f32 = 130.0;
+
 /// Time slider, step buttons, play/pause, loop, fps, and the current step and time value.
 pub fn time_ui(
     ui: &mut Ui,
@@ -551,26 +569,29 @@ pub fn time_ui(
         if ui.button("Last").on_hover_text("Last step").clicked() {
             commands.push(Command::SetStep(count - 1));
         }
-        let mut step = t.step;
-        ui.spacing_mut().slider_width = (ui.available_width() - 420.0).max(100.0);
-        if ui
-            .add(Slider::new(&mut step, 0..=count - 1).text("Time step"))
-            .changed()
-        {
-            commands.push(Command::SetStep(step));
-        }
+        ui.checkbox(&mut t.looping, "Loop");
+        ui.spacing_mut().slider_width = 90.0;
+        ui.add(
+            slider(&mut t.fps, 0.5..=60.0)
+                .logarithmic(true)
+                .text("Playback fps"),
+        );
         ui.label(format!(
             "step {} / {}  t = {:.4}",
             t.step,
             count - 1,
             data.time_value(t.step)
         ));
-        ui.checkbox(&mut t.looping, "Loop");
-        ui.add(
-            Slider::new(&mut t.fps, 0.5..=60.0)
-                .logarithmic(true)
-                .text("Playback fps"),
-        );
+        // The step slider takes what is left of the row (its value field and label beside
+        // it), so that every control fits a narrow window.
+        let mut step = t.step;
+        ui.spacing_mut().slider_width = (ui.available_width() - TIME_SLIDER_EXTRAS_PX).max(60.0);
+        if ui
+            .add(slider(&mut step, 0..=count - 1).text("Time step"))
+            .changed()
+        {
+            commands.push(Command::SetStep(step));
+        }
     });
 }
 
@@ -579,11 +600,7 @@ pub fn time_ui(
 pub fn raw_layout_ui(ui: &mut Ui, layout: &mut RawLayoutState) -> bool {
     ui.horizontal(|ui| {
         for (a, name) in ["nx", "ny", "nz"].iter().enumerate() {
-            labelled_drag(
-                ui,
-                name,
-                DragValue::new(&mut layout.dims[a]).range(1..=1 << 20),
-            );
+            labelled_drag(ui, name, number(&mut layout.dims[a]).range(1..=1 << 20));
         }
     });
     egui::ComboBox::from_label("Voxel type")
@@ -597,15 +614,13 @@ pub fn raw_layout_ui(ui: &mut Ui, layout: &mut RawLayoutState) -> bool {
         ui.radio_value(&mut layout.little_endian, true, "Little endian");
         ui.radio_value(&mut layout.little_endian, false, "Big endian");
     });
-    labelled_drag(ui, "Header bytes", DragValue::new(&mut layout.header_bytes));
+    labelled_drag(ui, "Header bytes", number(&mut layout.header_bytes));
     ui.horizontal(|ui| {
         for (a, name) in ["sx", "sy", "sz"].iter().enumerate() {
             labelled_drag(
                 ui,
                 name,
-                DragValue::new(&mut layout.spacing[a])
-                    .speed(0.01)
-                    .range(1e-9..=1e9),
+                number(&mut layout.spacing[a]).speed(0.01).range(1e-9..=1e9),
             );
         }
     });

@@ -53,6 +53,10 @@ pub struct RawDialog {
     pub layout: RawLayoutState,
     /// What the session's file list becomes when the open succeeds.
     pub files: Option<Vec<PathBuf>>,
+    /// Where the starting layout came from (the sidecar, or a guess from the file size).
+    pub note: String,
+    /// Why the last open with this dialog's layout failed (the dialog comes back with it).
+    pub error: Option<String>,
 }
 
 /// The DICOM series picker while it is open: a folder (or DICOMDIR, or file) of several
@@ -86,10 +90,18 @@ pub struct Runtime {
     /// When recent frames arrived (the status bar's frames/s).
     pub shown_times: VecDeque<Instant>,
     pub raw_dialog: Option<RawDialog>,
+    /// The raw dialog whose layout is being opened: shown again, with the error, if the
+    /// open fails.
+    pub raw_retry: Option<RawDialog>,
+    /// The in-app file browser (File → Open…, sessions) while it is open.
+    pub file_browser: Option<super::file_browser::FileBrowser>,
     pub series_dialog: Option<SeriesDialog>,
     pub screenshot_window: bool,
     pub notifications: Vec<Notification>,
     pub last_interaction: Option<Instant>,
+    /// How long the last full-resolution frame took to render: playback draws full frames
+    /// when this fits in a step's time at the playback rate, previews otherwise.
+    pub last_full_frame: Option<Duration>,
     pub last_step_advance: Instant,
     /// The viewport's size in pixels (the full-resolution render size).
     pub viewport_px: [u32; 2],
@@ -110,10 +122,13 @@ impl Default for Runtime {
             shown: None,
             shown_times: VecDeque::new(),
             raw_dialog: None,
+            raw_retry: None,
+            file_browser: None,
             series_dialog: None,
             screenshot_window: false,
             notifications: Vec::new(),
             last_interaction: None,
+            last_full_frame: None,
             last_step_advance: Instant::now(),
             viewport_px: [0, 0],
         }

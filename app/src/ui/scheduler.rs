@@ -44,6 +44,13 @@ impl ViewerApp {
         }
         // A newly published level changes the render request.
         self.rt.lod = self.rt.data.as_ref().and_then(|d| d.scene.lod_status());
+        // The data section's summary names the drawn point array, step and levels: read
+        // them from the scene, not from when it was opened.
+        if let Some(d) = self.rt.data.as_mut()
+            && let Some(summary) = d.scene.summary()
+        {
+            d.summary = summary;
+        }
         if self.rt.lod.as_ref().is_some_and(|l| !l.finished) {
             ctx.request_repaint_after(LOD_POLL);
         }
@@ -53,12 +60,21 @@ impl ViewerApp {
         match done {
             Finished::Loaded { files, result } => match result.and_then(|r| r) {
                 Ok(data) => {
+                    self.rt.raw_retry = None;
                     if let Some(files) = files {
                         self.state.files = files;
                     }
                     self.install_data(data);
                 }
-                Err(e) => self.notify(e, true),
+                Err(e) => {
+                    // A raw layout that did not fit: the dialog comes back with the layout
+                    // entered and the reason, to correct it.
+                    if let Some(mut dialog) = self.rt.raw_retry.take() {
+                        dialog.error = Some(e.clone());
+                        self.rt.raw_dialog = Some(dialog);
+                    }
+                    self.notify(e, true);
+                }
             },
             Finished::FieldSwitched { name, result } => match result.and_then(|r| r) {
                 Ok(info) => self.field_switched(name, info),
@@ -191,6 +207,9 @@ impl ViewerApp {
             Ok(Some(img)) if ticket.epoch == self.rt.epoch && ticket.generation > newest_shown => {
                 let (width, height, bytes) = (img.width, img.height, img.rgba8.len());
                 let size = [width as usize, height as usize];
+                if ticket.request.scale == 1 {
+                    self.rt.last_full_frame = Some(img.elapsed);
+                }
                 if let Some(color) = color_image(size, img.rgba8) {
                     let texture = match self.rt.shown.take() {
                         Some(mut s) => {
@@ -209,6 +228,7 @@ impl ViewerApp {
                         lod_level: img.lod_level,
                     });
                     self.rt.shown_times.push_back(Instant::now());
+
                     self.stats.renders_shown += 1;
                 } else {
                     self.stats.renders_discarded += 1;
@@ -251,6 +271,8 @@ impl ViewerApp {
             || "generating the default sample".to_string(),
             |p| format!("loading {}", p.display()),
         );
+        // Another open replaces a raw open whose dialog would come back on failure.
+        self.rt.raw_retry = None;
         let mut choices = self.open_choices();
         choices.dicom_series = series;
         let job = Job::spawn(label, self.repaint_fn(), move |control| match path {
@@ -379,20 +401,40 @@ impl ViewerApp {
 
     // ---- what the state asks for --------------------------------------------------------
 
+    /// True while the view moves (a drag, or input within [`SETTLE`]).
     fn is_interacting(&self, ctx: &egui::Context) -> bool {
         ctx.dragged_id().is_some()
-            || self.state.time.playing
             || self
                 .rt
                 .last_interaction
                 .is_some_and(|t| t.elapsed() < SETTLE)
     }
 
+    /// Playback draws previews only when full frames cannot keep up: when the last
+    /// full-resolution frame took longer than a step lasts at the playback rate (or none
+    /// has been measured yet).
+    fn playback_needs_previews(&self) -> bool {
+        let t = &self.state.time;
+        t.playing
+            && self
+                .rt
+                .last_full_frame
+                .is_none_or(|took| took > playback_period(t.fps))
+    }
+
     /// Starts the step switch, render and prefetch the state asks for (module docs).
     pub(super) fn schedule(&mut self, ctx: &egui::Context) {
         self.schedule_step();
         let interacting = self.is_interacting(ctx);
-        let scale = if interacting { INTERACTIVE_SCALE } else { 1 };
+        let previews = interacting || self.playback_needs_previews();
+        if interacting {
+            // A frame once the view settles, which starts the full-resolution refinement.
+            // Asked for before anything below returns early: after keyboard input (arrows,
+            // R, +/-) no pointer event follows to wake the viewer, and a coarse frame that
+            // is already on screen would otherwise stay there.
+            ctx.request_repaint_after(SETTLE);
+        }
+        let scale = if previews { INTERACTIVE_SCALE } else { 1 };
         let Some(wanted) = self.desired_request(scale) else {
             return;
         };
@@ -432,9 +474,6 @@ impl ViewerApp {
             // A coarse frame is cheap: let it finish (the user sees progress), then render
             // the newest request.
             Some(_) => self.rt.pending_render = Some(wanted),
-        }
-        if interacting {
-            ctx.request_repaint_after(SETTLE);
         }
     }
 
@@ -495,7 +534,7 @@ impl ViewerApp {
         if !t.playing || count <= 1 {
             return;
         }
-        let period = Duration::from_secs_f32(1.0 / t.fps.clamp(0.1, 120.0));
+        let period = playback_period(t.fps);
         let since = self.rt.last_step_advance.elapsed();
         if since < period {
             ctx.request_repaint_after(period.saturating_sub(since));
@@ -518,4 +557,9 @@ impl ViewerApp {
         }
         ctx.request_repaint_after(period);
     }
+}
+
+/// How long one step lasts when playing at `fps` steps per second.
+fn playback_period(fps: f32) -> Duration {
+    Duration::from_secs_f32(1.0 / fps.clamp(0.1, 120.0))
 }

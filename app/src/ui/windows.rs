@@ -1,6 +1,7 @@
-//! Windows over the viewport: the raw-file layout dialog, the DICOM series picker, the
-//! screenshot dialog and the notifications (errors stay until dismissed). They read the state and push
-//! [`Command`]s; so do files dropped on the window.
+//! Windows over the viewport: the raw-file layout dialog, the file browser
+//! ([`super::file_browser`]), the DICOM series picker, the screenshot dialog and the
+//! notifications (errors stay until dismissed). They read the state and push [`Command`]s;
+//! so do files dropped on the window.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -9,6 +10,7 @@ use egui::{Color32, Vec2};
 
 use super::app::ViewerApp;
 use super::commands::Command;
+use super::file_browser::BrowseOutcome;
 use super::panels;
 
 impl ViewerApp {
@@ -21,6 +23,10 @@ impl ViewerApp {
                 .collapsible(false)
                 .show(ctx, |ui| {
                     ui.label(dialog.path.display().to_string());
+                    ui.label(egui::RichText::new(&dialog.note).small().weak());
+                    if let Some(e) = &dialog.error {
+                        ui.colored_label(Color32::from_rgb(255, 120, 100), e);
+                    }
                     confirmed = panels::raw_layout_ui(ui, &mut dialog.layout);
                 });
             if confirmed {
@@ -34,6 +40,16 @@ impl ViewerApp {
                 self.rt.raw_dialog = None;
             }
         }
+        if let Some(browser) = &mut self.rt.file_browser {
+            match browser.ui(ctx) {
+                BrowseOutcome::Open => {}
+                BrowseOutcome::Done(command) => {
+                    self.commands.push(command);
+                    self.rt.file_browser = None;
+                }
+                BrowseOutcome::Cancelled => self.rt.file_browser = None,
+            }
+        }
         self.series_picker_ui(ctx);
         if self.rt.screenshot_window {
             let mut open = true;
@@ -44,12 +60,8 @@ impl ViewerApp {
                 .show(ctx, |ui| {
                     let [w, h] = &mut self.prefs.screenshot_size;
                     ui.horizontal(|ui| {
-                        let l = ui.label("Width");
-                        ui.add(egui::DragValue::new(w).range(16..=16384))
-                            .labelled_by(l.id);
-                        let l = ui.label("Height");
-                        ui.add(egui::DragValue::new(h).range(16..=16384))
-                            .labelled_by(l.id);
+                        panels::labelled_drag(ui, "Width", panels::number(w).range(16..=16384));
+                        panels::labelled_drag(ui, "Height", panels::number(h).range(16..=16384));
                     });
                     let mut path = self.prefs.screenshot_path.display().to_string();
                     ui.horizontal(|ui| {
