@@ -9,11 +9,14 @@
 //! - [`progress`]: indicatif bars that show only for long jobs on a terminal.
 //! - [`scene`]: [`scene::open_scene`] opens grids, tet meshes and `.isot` files as one
 //!   [`scene::AnyScene`] that the CLI and the viewer render through the same call.
-//! - [`ui`]: the viewer (`isoscope` with no subcommand): [`ui::app::ViewerApp`], its state,
-//!   background jobs, commands, panels and the backend link.
+//! - `ui` (cargo feature `viewer`, on by default): the viewer (`isoscope` with no
+//!   subcommand): `ui::app::ViewerApp`, its state, background jobs, commands, panels and the
+//!   backend link. Without the feature the crate is the CLI and scene library alone, with no
+//!   GUI dependencies (the Python package, `app/python`, builds it so).
 
 pub mod cli;
 pub mod output;
 pub mod progress;
 pub mod scene;
+#[cfg(feature = "viewer")]
 pub mod ui;
