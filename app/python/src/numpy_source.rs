@@ -1,7 +1,7 @@
 //! Volumes that view a numpy array's memory in place (zero-copy).
 //!
 //! `volume_core` stores voxels either owned or as a view into a shared
-//! [`ByteSource`](volume_core::volume::ByteSource) (there: a memory map). [`NumpyBytes`] is
+//! `ByteSource` (there: a memory map). [`NumpyBytes`] is
 //! one more such source: the array's data pointer and length, kept valid by a reference to
 //! the array itself. The kd-tree and the renderer then read the array's own memory through
 //! the same typed slice as a mapped file, so there is no per-voxel dispatch and no copy; the

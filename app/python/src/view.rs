@@ -8,7 +8,7 @@
 //!
 //! Rendering goes through [`render_scene_with`], the function `isoscope render` uses
 //! (including the wait for an `.isot` file's finest needed level), so the image and depth
-//! equal the CLI's for the same file, camera and settings. [`Scene::first_hit`] traces
+//! equal the CLI's for the same file, camera and settings. `Scene.first_hit` traces
 //! caller-given rays with the same [`IsoScene`] traversal, batched over the rayon pool, each
 //! ray limited to the data bounds as the renderer limits its primary rays.
 
