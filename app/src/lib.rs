@@ -11,12 +11,15 @@
 //!   [`scene::AnyScene`] that the CLI and the viewer render through the same call.
 //! - [`values`]: data values printed the way their type reads (integers as integers, `f32`
 //!   as the shortest decimal that reads back).
-//! - [`ui`]: the viewer (`isoscope` with no subcommand): [`ui::app::ViewerApp`], its state,
-//!   background jobs, commands, panels and the backend link.
+//! - `ui` (cargo feature `viewer`, on by default): the viewer (`isoscope` with no
+//!   subcommand): `ui::app::ViewerApp`, its state, background jobs, commands, panels and the
+//!   backend link. Without the feature the crate is the CLI and scene library alone, with no
+//!   GUI dependencies (the Python package, `app/python`, builds it so).
 
 pub mod cli;
 pub mod output;
 pub mod progress;
 pub mod scene;
+#[cfg(feature = "viewer")]
 pub mod ui;
 pub mod values;

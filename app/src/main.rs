@@ -18,6 +18,7 @@ fn main() -> std::process::ExitCode {
     }
 }
 
+#[cfg(feature = "viewer")]
 fn run_viewer(files: Vec<std::path::PathBuf>) -> anyhow::Result<()> {
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
@@ -34,4 +35,12 @@ fn run_viewer(files: Vec<std::path::PathBuf>) -> anyhow::Result<()> {
         Box::new(move |cc| Ok(Box::new(isoscope::ui::app::ViewerApp::new(cc, files)))),
     )
     .map_err(|e| anyhow::anyhow!("cannot open the viewer window: {e}"))
+}
+
+#[cfg(not(feature = "viewer"))]
+fn run_viewer(_files: Vec<std::path::PathBuf>) -> anyhow::Result<()> {
+    anyhow::bail!(
+        "this isoscope was built without the viewer (cargo feature `viewer`); \
+         run a subcommand such as `isoscope render` (see `isoscope --help`)"
+    )
 }

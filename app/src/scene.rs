@@ -702,6 +702,14 @@ impl GridData {
         self.series.as_ref()
     }
 
+    /// Re-reads the voxels in place after their memory changed (a volume viewing memory it
+    /// does not own, such as a numpy array): value range and a kd-tree refit, no rebuild.
+    pub fn refresh(&mut self) -> StepSwitch {
+        let switch = update_grid_scene(&mut self.scene, &self.volume);
+        self.value_range = self.volume.value_stats().finite_range;
+        switch
+    }
+
     /// Loads `step` through the series (which caches it) after checking its range.
     fn load_step(&self, step: usize) -> anyhow::Result<Option<RectilinearVolume>> {
         let Some(series) = &self.series else {
@@ -942,6 +950,28 @@ impl TetData {
         };
         check_step(options.step, count, path)?;
         control.checkpoint(0.5)?;
+        Self::build(path, loaded, series, options, control)
+    }
+
+    /// Wraps a mesh already in memory (e.g. arrays from Python) as a mesh scene named `path`
+    /// in messages: the same field choice and BVH build as a file.
+    pub fn from_loaded(
+        path: &Path,
+        loaded: LoadedMesh,
+        options: &SceneOptions,
+    ) -> anyhow::Result<Self> {
+        check_step(options.step, 1, path)?;
+        Self::build(path, loaded, None, options, &OpenControl::NONE)
+    }
+
+    /// Picks the drawn array and builds the BVH of step `options.step` (checked).
+    fn build(
+        path: &Path,
+        loaded: LoadedMesh,
+        series: Option<MeshSeries>,
+        options: &SceneOptions,
+        control: &OpenControl<'_>,
+    ) -> anyhow::Result<Self> {
         let mesh = &loaded.mesh;
         let field = if let Some(f) = &options.field {
             f.clone()

@@ -176,7 +176,16 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
         let _spinner = Progress::spinner(format!("opening {}", path.display()));
         formats::open(path, options)?
     };
-    let (first, steps) = match &dataset {
+    let mut report = volume_report(path, &dataset)?;
+    report.arrays = arrays;
+    report.array = array;
+    Ok(report)
+}
+
+/// The report of a dataset already open (a file, or a volume made in memory); `path` names
+/// it in the report and in errors. `arrays` and `array` are left empty.
+pub fn volume_report(path: &Path, dataset: &formats::Dataset) -> anyhow::Result<InfoReport> {
+    let (first, steps) = match dataset {
         formats::Dataset::Volume(v) => (v, Steps::One(v)),
         formats::Dataset::Series(s) => (s.first(), Steps::Series(s)),
     };
@@ -266,8 +275,8 @@ pub fn gather(path: &Path, options: &formats::OpenOptions) -> anyhow::Result<Inf
         time_values,
         histogram,
         memory_mapped: first.data.is_shared(),
-        arrays,
-        array,
+        arrays: Vec::new(),
+        array: None,
         dicom_series: None,
         dicom_opened: None,
         dicom_skipped: None,
@@ -592,8 +601,18 @@ pub fn gather_mesh(path: &Path) -> anyhow::Result<MeshInfoReport> {
             None => formats::mesh::read_mesh(path)?,
         }
     };
+    mesh_report(path, &first, series.as_ref())
+}
+
+/// The report of a mesh already read (from a file, or made in memory) with its series, if
+/// any; `path` names it in the report and in errors.
+pub fn mesh_report(
+    path: &Path,
+    first: &formats::mesh::LoadedMesh,
+    series: Option<&MeshSeries>,
+) -> anyhow::Result<MeshInfoReport> {
     let mesh = &first.mesh;
-    let steps = series.as_ref().map_or(1, MeshSeries::len);
+    let steps = series.map_or(1, MeshSeries::len);
     let mut ranges: Vec<ArrayReport> = mesh
         .fields
         .iter()
@@ -619,7 +638,7 @@ pub fn gather_mesh(path: &Path) -> anyhow::Result<MeshInfoReport> {
         }
     };
     add(&mesh.fields);
-    if let Some(s) = &series {
+    if let Some(s) = series {
         let progress = Progress::bar(steps as u64, "value ranges");
         progress.inc(1);
         for i in 1..steps {
@@ -652,7 +671,7 @@ pub fn gather_mesh(path: &Path) -> anyhow::Result<MeshInfoReport> {
             .collect(),
         bounds,
         time_steps: steps,
-        time_values: match &series {
+        time_values: match series {
             Some(s) => s.steps.iter().map(|st| st.time).collect(),
             None => vec![0.0],
         },

@@ -280,7 +280,7 @@ pub fn scene_options(
     })
 }
 
-fn parse_bvh(s: &str) -> Result<BvhBuilder, String> {
+pub fn parse_bvh(s: &str) -> Result<BvhBuilder, String> {
     s.parse::<BvhBuilder>()
 }
 
@@ -295,7 +295,7 @@ pub fn parse_packet_side(s: &str) -> Result<usize, String> {
     }
 }
 
-fn parse_normals(s: &str) -> Result<TetNormals, String> {
+pub fn parse_normals(s: &str) -> Result<TetNormals, String> {
     match s.trim().to_ascii_lowercase().as_str() {
         "faceted" | "flat" => Ok(TetNormals::Faceted),
         "smooth" => Ok(TetNormals::Smooth),
@@ -314,7 +314,7 @@ pub fn parse_voxel_type(s: &str) -> Result<VoxelType, String> {
     })
 }
 
-fn parse_endian(s: &str) -> Result<Endian, String> {
+pub fn parse_endian(s: &str) -> Result<Endian, String> {
     Endian::from_name(&s.to_ascii_lowercase())
         .ok_or_else(|| format!("unknown byte order `{s}`: expected little or big"))
 }

@@ -60,7 +60,20 @@ pub fn parse_levels(s: &str) -> Result<Levels, String> {
     }
 }
 
-pub fn run(args: &Args) -> anyhow::Result<()> {
+/// What [`build`] wrote.
+#[derive(Debug, Clone, Copy)]
+pub struct Built {
+    pub treelets: u64,
+    pub levels: usize,
+    pub treelet_height: u32,
+    /// Bytes of the input volume's voxels (one pass).
+    pub input_bytes: u64,
+}
+
+/// Opens the input, checks the output and writes the `.isot` file; `progress(done, total)`
+/// counts voxel bytes read over the two passes (`total` = twice the input). The one
+/// preprocess path of the CLI and the Python package.
+pub fn build(args: &Args, progress: &mut dyn FnMut(u64, u64)) -> anyhow::Result<Built> {
     let replace = Replace::from_force(args.force);
     let options = args.open.open_options()?;
     let dataset = formats::open(&args.input, &options)
@@ -82,39 +95,54 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     }
     .with_context(|| format!("{}: cannot cut into treelets", args.input.display()))?;
     let levels = layout.level_count();
-    let height = layout.treelet_height();
+    let treelet_height = layout.treelet_height();
     let input_bytes = volume.data.size_bytes() as u64;
     // The build reads the input twice (pass 1: value range + streamed LOD pyramid; pass 2:
-    // finest treelets); the bar counts MB read over both passes.
+    // finest treelets).
     let voxel_bytes = volume.data.voxel_type().size_bytes() as u64;
-    let bar = Progress::bar(2 * input_bytes.div_ceil(1 << 20), "preprocess");
-    let start = Instant::now();
-    let mut meter = Meter::new(start);
     let report = formats::treelet::write_isot_volume(
         &args.output,
         volume,
         layout,
         replace,
-        &mut |done, total| {
-            let mb = (done * voxel_bytes) >> 20;
-            bar.inc(mb.saturating_sub(bar.position()));
-            if let Some(msg) = meter.tick(done * voxel_bytes, total * voxel_bytes / 2) {
-                bar.set_message(msg);
-            }
-        },
+        &mut |done, total| progress(done * voxel_bytes, total * voxel_bytes),
     )?;
-    bar.finish();
+    Ok(Built {
+        treelets: report.treelets,
+        levels,
+        treelet_height,
+        input_bytes,
+    })
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let mut meter = Meter::new(start);
+    let mut bar = None;
+    let built = build(args, &mut |done, total| {
+        // The bar counts MB read over both passes.
+        let bar = bar.get_or_insert_with(|| Progress::bar(total.div_ceil(1 << 20), "preprocess"));
+        bar.inc((done >> 20).saturating_sub(bar.position()));
+        if let Some(msg) = meter.tick(done, total / 2) {
+            bar.set_message(msg);
+        }
+    })?;
+    if let Some(bar) = bar {
+        bar.finish();
+    }
     meter.sample_memory();
     let secs = start.elapsed().as_secs_f64().max(1e-9);
     let out_bytes = std::fs::metadata(&args.output).map_or(0, |m| m.len());
     println!(
-        "{}: {} treelets in {levels} levels (height {height}), {:.1} MB written, {:.2} s, \
+        "{}: {} treelets in {} levels (height {}), {:.1} MB written, {:.2} s, \
          {:.1} MB/s input, peak anonymous memory {:.1} MB (sampled)",
         args.output.display(),
-        report.treelets,
+        built.treelets,
+        built.levels,
+        built.treelet_height,
         out_bytes as f64 / 1e6,
         secs,
-        input_bytes as f64 / 1e6 / secs,
+        built.input_bytes as f64 / 1e6 / secs,
         meter.peak_anon_bytes as f64 / 1e6,
     );
     Ok(())

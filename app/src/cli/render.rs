@@ -419,7 +419,23 @@ pub fn render_scene(
     settings: &RenderSettings,
     level_timeout: std::time::Duration,
 ) -> anyhow::Result<Rendered> {
-    let cancel = AtomicBool::new(false);
+    render_scene_with(
+        scene,
+        camera,
+        settings,
+        level_timeout,
+        &AtomicBool::new(false),
+    )
+}
+
+/// [`render_scene`] that stops when `cancel` is raised (the error then says so).
+pub fn render_scene_with(
+    scene: &AnyScene,
+    camera: &Camera,
+    settings: &RenderSettings,
+    level_timeout: std::time::Duration,
+    cancel: &AtomicBool,
+) -> anyhow::Result<Rendered> {
     if let AnyScene::Ooc(o) = scene {
         o.set_isovalues(&settings.active_isovalues().0);
         let finished = {
@@ -451,7 +467,7 @@ pub fn render_scene(
             for _ in 0..MAX_DEMAND_FRAMES {
                 let generation = o.volume().generation();
                 out = Some(
-                    o.render_with_level(camera, settings, &cancel)
+                    o.render_with_level(camera, settings, cancel)
                         .context("rendering was cancelled")?,
                 );
                 if !(finished && status.budget_limited) {
@@ -475,7 +491,7 @@ pub fn render_scene(
     let frame = {
         let _spinner = Progress::spinner("rendering");
         scene
-            .render(camera, settings, &cancel)
+            .render(camera, settings, cancel)
             .context("rendering was cancelled")?
     };
     Ok(Rendered {
