@@ -545,6 +545,23 @@ impl AnyScene {
         }))
     }
 
+    /// How the values drawn read ([`crate::values::ValueFormat`]): the voxel type through
+    /// its value map; mesh arrays are `f32`.
+    pub fn value_format(&self) -> crate::values::ValueFormat {
+        use crate::values::ValueFormat;
+        match self {
+            AnyScene::Grid(g) => {
+                let v = g.volume();
+                ValueFormat::of(v.data.voxel_type(), Some(&v.value_map))
+            }
+            AnyScene::Tet(_) => ValueFormat::F32,
+            AnyScene::Ooc(o) => {
+                let meta = o.volume().meta();
+                ValueFormat::of(meta.voxel_type, Some(&meta.value_map))
+            }
+        }
+    }
+
     /// The middle of [`Self::value_range`]: the isovalue shown when none is given.
     pub fn default_isovalue(&self) -> Option<f32> {
         self.value_range().map(|(lo, hi)| (0.5 * (lo + hi)) as f32)

@@ -184,6 +184,7 @@ impl Backend for TestBackend {
             bounds: Aabb::new(Vec3::ZERO, Vec3::new(5.0, 4.0, 6.0)),
             world_frame: volume_core::WorldFrame::Lps,
             value_range: (0.0, 8.0),
+            value_format: isoscope::values::ValueFormat::F32,
             histogram: None,
             histogram_note: String::new(),
             fields: Vec::new(),
@@ -1397,4 +1398,35 @@ fn every_text_shown_has_glyphs_in_the_fonts() {
         .filter(|(c, _)| !h.ctx.fonts_mut(|f| f.has_glyph(&font, *c)))
         .collect();
     assert!(missing.is_empty(), "no glyph for {missing:?}");
+}
+
+/// The data section prints values as the data type reads them: an `i16` volume's range in
+/// whole numbers (the minimum and maximum of its voxels as read by `formats`), not
+/// `-1000.000000`; and the view opens framing the data tightly (zoom below the bounding
+/// sphere's 1).
+#[test]
+fn integer_values_read_as_integers_and_the_data_fills_the_view() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../data-samples/samples/phantom64_i16.nrrd");
+    let volume = formats::open(&path, &formats::OpenOptions::default())
+        .unwrap()
+        .first_volume()
+        .clone();
+    let d = volume.dims();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for k in 0..d[2] {
+        for j in 0..d[1] {
+            for i in 0..d[0] {
+                let v = volume.physical_f64(i, j, k);
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    let mut h = real_harness(vec![path]);
+    step_until(&mut h, "the phantom", |a| a.data().is_some());
+    settle(&mut h);
+    h.get_by_label(&format!("values {} … {}", lo as i64, hi as i64));
+    let zoom = h.state().state.camera.zoom;
+    assert!(zoom < 0.95, "zoom {zoom}");
 }

@@ -177,6 +177,8 @@ pub struct LoadedData {
     pub world_frame: WorldFrame,
     /// Finite value range of the current step and field (the slider range).
     pub value_range: (f64, f64),
+    /// How the values read (integers as integers, `f32` as the shortest decimal).
+    pub value_format: crate::values::ValueFormat,
     /// Histogram of the current step and field (`.isot`: of the coarsest level).
     pub histogram: Option<Histogram>,
     /// What the histogram counts, shown under it.

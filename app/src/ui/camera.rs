@@ -36,6 +36,31 @@ pub fn bounding_radius(bounds: &Aabb) -> f32 {
     if r.is_finite() && r > 0.0 { r } else { 1.0 }
 }
 
+/// The default view of `bounds` in a viewport of `viewport_px` pixels: the default orbit,
+/// zoomed until the bounds fill the frame with a 5 % margin from that direction, as the CLI's
+/// and the Python package's orbit cameras frame them ([`volume_core::render::Camera::orbit_framed`]).
+/// Zoom 1 is the bounding sphere, which leaves a box a third or less of the frame.
+pub fn framed_view(bounds: &Aabb, viewport_px: [u32; 2]) -> CameraState {
+    let mut view = CameraState::default();
+    if bounds.is_empty() {
+        return view;
+    }
+    let aspect = viewport_px[0].max(1) as f32 / viewport_px[1].max(1) as f32;
+    let framed = volume_core::render::Camera::orbit_framed(
+        bounds,
+        view.azimuth_deg,
+        view.elevation_deg,
+        view.vfov_deg,
+        aspect,
+    );
+    let sphere_distance = bounding_radius(bounds) / (0.5 * view.vfov_deg.to_radians()).sin();
+    let zoom = framed.eye.distance(framed.target) / sphere_distance;
+    if zoom.is_finite() && zoom > 0.0 {
+        view.zoom = zoom.clamp(CameraState::MIN_ZOOM, CameraState::MAX_ZOOM);
+    }
+    view
+}
+
 impl CameraPose {
     /// The orbit camera: z is up, azimuth 0 looks from +x, elevation from above.
     pub fn from_state(state: &CameraState, bounds: &Aabb) -> Self {
@@ -178,6 +203,31 @@ pub fn box_edges(b: &Aabb) -> [(Vec3, Vec3); 12] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_framed_view_puts_the_bounds_at_the_margin_of_the_viewport() {
+        let b = Aabb::new(Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 2.0, 2.5));
+        for px in [[1280u32, 800u32], [600, 900]] {
+            let view = framed_view(&b, px);
+            assert!(view.zoom < 1.0, "{}", view.zoom);
+            // Brute force: project the corners with the viewer's own pose and projection.
+            let pose = CameraPose::from_state(&view, &b);
+            let (w, h) = (px[0] as f32, px[1] as f32);
+            let mut most = 0.0f32;
+            for c in 0..8 {
+                let p = Vec3::new(
+                    if c & 1 == 0 { b.min.x } else { b.max.x },
+                    if c & 2 == 0 { b.min.y } else { b.max.y },
+                    if c & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                let [i, j] = pose.project(p, w, h).unwrap();
+                most = most
+                    .max((2.0 * i / w - 1.0).abs())
+                    .max((2.0 * j / h - 1.0).abs());
+            }
+            assert!((most - 1.0 / 1.05).abs() < 2e-3, "{px:?}: {most}");
+        }
+    }
 
     fn unit_box() -> Aabb {
         Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0))

@@ -83,6 +83,15 @@ pub enum Command {
 }
 
 impl ViewerApp {
+    /// The default view framing the data shown (or the unit view without data) in the
+    /// viewport ([`super::camera::framed_view`]).
+    pub(super) fn framed_view(&self) -> CameraState {
+        match &self.rt.data {
+            Some(d) => super::camera::framed_view(&d.bounds, self.rt.viewport_px),
+            None => CameraState::default(),
+        }
+    }
+
     pub(super) fn apply_commands(&mut self) {
         for cmd in std::mem::take(&mut self.commands) {
             self.apply(cmd);
@@ -156,7 +165,7 @@ impl ViewerApp {
             Command::RemoveClipPlane(i) if i < self.state.clip_planes.len() => {
                 self.state.clip_planes.remove(i);
             }
-            Command::ResetView => self.state.camera = CameraState::default(),
+            Command::ResetView => self.state.camera = self.framed_view(),
             Command::SetTiffSpacing(spacing) => {
                 if let Some(path) = self.rt.data.as_ref().and_then(|d| d.path.clone()) {
                     self.state.tiff_spacing = Some(spacing);

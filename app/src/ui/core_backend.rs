@@ -294,6 +294,7 @@ pub fn loaded_data(
         bounds: scene.world_bounds(),
         world_frame: data.world_frame(),
         value_range: info.value_range,
+        value_format: scene.value_format(),
         histogram: info.histogram,
         histogram_note: info.histogram_note,
         fields: data.field_names().into_iter().map(str::to_owned).collect(),

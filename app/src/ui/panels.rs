@@ -107,8 +107,9 @@ pub fn data_ui(
             ui.label(egui::RichText::new(&d.name).strong());
             ui.label(&d.summary);
             ui.label(format!(
-                "values {:.6} … {:.6}",
-                d.value_range.0, d.value_range.1
+                "values {} … {}",
+                d.value_format.value(d.value_range.0),
+                d.value_format.value(d.value_range.1)
             ));
             let e = d.bounds.extent();
             ui.label(format!("extent {:.4} × {:.4} × {:.4}", e.x, e.y, e.z));
@@ -309,9 +310,13 @@ pub fn isosurface_ui(
     histogram_ui(ui, data, &mut state.surfaces, *log_histogram);
     ui.horizontal(|ui| {
         ui.label(
-            egui::RichText::new(format!("{lo:.6} … {hi:.6}"))
-                .small()
-                .weak(),
+            egui::RichText::new(format!(
+                "{} … {}",
+                data.value_format.value(lo),
+                data.value_format.value(hi)
+            ))
+            .small()
+            .weak(),
         );
     });
     if !data.histogram_note.is_empty() {

@@ -21,7 +21,7 @@ use super::job_table::{Finished, RenderTicket};
 use super::jobs::Job;
 use super::panels;
 use super::runtime::ShownFrame;
-use super::state::{RawLayoutState, ViewerState};
+use super::state::{CameraState, RawLayoutState, ViewerState};
 
 /// Progressive level used while the user interacts (one ray per 4×4 pixels).
 pub const INTERACTIVE_SCALE: u32 = 4;
@@ -187,7 +187,12 @@ impl ViewerApp {
         }
         self.state.field.clone_from(&data.field);
         self.rt.lod = data.scene.lod_status();
+        // An untouched default view (not a session's, not the user's) frames the new data.
+        let untouched = self.state.camera == CameraState::default();
         self.rt.data = Some(data);
+        if untouched {
+            self.state.camera = self.framed_view();
+        }
         self.stats.datasets_loaded += 1;
         self.stats.scenes_built += 1;
     }

@@ -9,7 +9,6 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
 use super::app::ViewerApp;
 use super::camera::{CameraPose, box_edges, clip_box_world};
 use super::scheduler::MAX_RENDER_SIDE;
-use super::state::CameraState;
 
 impl ViewerApp {
     pub(super) fn viewport_ui(&mut self, ui: &mut egui::Ui) {
@@ -88,6 +87,7 @@ impl ViewerApp {
         }
         let typing = ui.ctx().memory(|m| m.focused().is_some());
         if response.hovered() && !typing {
+            let framed = self.framed_view();
             ui.input(|i| {
                 use egui::Key;
                 let c = &mut self.state.camera;
@@ -106,7 +106,7 @@ impl ViewerApp {
                 } else if i.key_down(Key::Minus) {
                     c.zoom_by(1.03);
                 } else if i.key_pressed(Key::R) {
-                    *c = CameraState::default();
+                    *c = framed;
                 } else {
                     any = false;
                 }
