@@ -231,20 +231,26 @@ impl PreparedScene for CorePrepared {
             if s.step() == step {
                 return Ok(StepSwitch::Unchanged);
             }
-            s.data().prefetch(step).map_err(|e| format!("{e:#}"))?;
+            s.data()
+                .prefetch(step)
+                .map_err(|e| crate::cli::error_text(&e))?;
         }
         let mut s = self.scene.write().map_err(poisoned)?;
-        s.set_step(step).map_err(|e| format!("{e:#}"))
+        s.set_step(step).map_err(|e| crate::cli::error_text(&e))
     }
 
     fn prefetch(&self, step: usize, _control: &JobControl) -> Result<(), String> {
         let s = self.scene.read().map_err(poisoned)?;
-        s.data().prefetch(step).map_err(|e| format!("{e:#}"))
+        s.data()
+            .prefetch(step)
+            .map_err(|e| crate::cli::error_text(&e))
     }
 
     fn set_field(&self, name: &str, _control: &JobControl) -> Result<ValueInfo, String> {
         let mut s = self.scene.write().map_err(poisoned)?;
-        s.data_mut().set_field(name).map_err(|e| format!("{e:#}"))?;
+        s.data_mut()
+            .set_field(name)
+            .map_err(|e| crate::cli::error_text(&e))?;
         drop(s);
         self.value_info()
             .ok_or_else(|| format!("point array \"{name}\" has no finite values"))
@@ -362,7 +368,7 @@ impl Backend for CoreBackend {
             if is_cancelled(&e) {
                 format!("{}: opening cancelled", path.display())
             } else {
-                format!("{e:#}")
+                crate::cli::error_text(&e)
             }
         })?;
         // A restored session's point array, if this mesh has it.
@@ -373,7 +379,7 @@ impl Backend for CoreBackend {
             scene
                 .data_mut()
                 .set_field(want)
-                .map_err(|e| format!("{e:#}"))?;
+                .map_err(|e| crate::cli::error_text(&e))?;
         }
         open_control
             .checkpoint(1.0)

@@ -164,13 +164,12 @@ pub fn group_files(files: &[PathBuf]) -> FileGroup {
 }
 
 /// `path` made absolute, so that the recent-files list and saved sessions name the same file
-/// from any working directory: canonical (symbolic links and `..` resolved) when it exists;
-/// a series pattern (`blob_*.nrrd`) or a missing file keeps its name under its canonical
-/// folder, else it is joined to the working directory.
+/// from any working directory: its name under its canonical folder (`..` and linked folders
+/// resolved). The name itself is kept, not resolved: a link `x.nrrd` to another file stays
+/// `x.nrrd`, the name the user chose and errors should quote. A series pattern
+/// (`blob_*.nrrd`) or a missing file is handled alike; a path without a name (`..`) is
+/// canonicalized, else joined to the working directory.
 pub fn absolute_path(path: &Path) -> PathBuf {
-    if let Ok(p) = std::fs::canonicalize(path) {
-        return p;
-    }
     let in_canonical_dir = path.file_name().and_then(|name| {
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
         std::fs::canonicalize(dir.unwrap_or(Path::new(".")))
@@ -178,6 +177,7 @@ pub fn absolute_path(path: &Path) -> PathBuf {
             .map(|d| d.join(name))
     });
     in_canonical_dir
+        .or_else(|| std::fs::canonicalize(path).ok())
         .or_else(|| std::path::absolute(path).ok())
         .unwrap_or_else(|| path.to_path_buf())
 }
@@ -195,7 +195,7 @@ impl ViewerState {
     /// save dialog asked; an input data file never is).
     pub fn save(&self, path: &Path) -> Result<(), String> {
         crate::output::save_text(path, &self.to_json(), formats::output::Replace::Allow)
-            .map_err(|e| format!("{e:#}"))
+            .map_err(|e| crate::cli::error_text(&e))
     }
 
     /// Reads a session: a regular file of at most [`MAX_SESSION_BYTES`], not recorded as an
@@ -380,6 +380,13 @@ mod tests {
             .join("a.nrrd");
         assert_eq!(absolute_path(&detour), canonical_dir.join("a.nrrd"));
         assert_eq!(absolute_path(&file), canonical_dir.join("a.nrrd"));
+        // A link keeps its own name (errors quote what the user opened).
+        #[cfg(unix)]
+        {
+            let link = dir.path().join("link.nrrd");
+            std::os::unix::fs::symlink(&file, &link).unwrap();
+            assert_eq!(absolute_path(&link), canonical_dir.join("link.nrrd"));
+        }
         // A pattern (no such file): its name under the canonical folder.
         let pattern = dir.path().join("blob_*.nrrd");
         assert_eq!(absolute_path(&pattern), canonical_dir.join("blob_*.nrrd"));

@@ -398,7 +398,7 @@ impl ViewerApp {
                 img.height,
                 Replace::from_force(replace),
             )
-            .map_err(|e| format!("{e:#}"))?;
+            .map_err(|e| crate::cli::error_text(&e))?;
             Ok(path)
         });
         self.jobs.screenshot.start((), job);
