@@ -92,6 +92,8 @@ pub fn save_rgba_image(
     height: u32,
     replace: Replace,
 ) -> anyhow::Result<()> {
+    // An input or an existing file is the first thing to say, as for every output.
+    formats::output::check_output(path, replace)?;
     let format = ImageFormat::for_path(path)?;
     let bytes = rgba_image_bytes(rgba8, width, height, format)
         .with_context(|| path.display().to_string())?;

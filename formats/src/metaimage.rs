@@ -658,6 +658,15 @@ fn plan(path: &Path, h: &MetaHeader) -> Result<(DataPlan, VolumeLayout, u64), Fo
     let time = (nd == 4).then(|| (h.offset[3], h.spacing[3]));
     let layout = VolumeLayout { grid, steps, time };
 
+    // A pattern names one file per slice: its last file must exist before the list of them
+    // all is made (a 100-byte header can name 2^20 files, a few hundred MB of names).
+    if let DataFile::Pattern { format, min, step } = &h.data_file {
+        let slices = h.dim_size[h.ndims - 1] as i64;
+        let last = min.saturating_add((slices - 1).saturating_mul(*step));
+        let last_file =
+            crate::input::beside(path, &crate::nrrd::header::format_printf(format, last));
+        crate::input::check_regular(&last_file).map_err(|e| FormatError::io(&last_file, e))?;
+    }
     let files = data_file_paths(h, path);
     if total % files.len() as u64 != 0 {
         return Err(h.bad(

@@ -547,7 +547,8 @@ fn metaimage_data_file_names_of_any_text_are_not_sliced_mid_character() {
 fn metaimage_pattern_of_100000_slice_files_is_read_without_a_scan_per_file() {
     // Every data file is noted in the input log before any is read; each note scanned the
     // whole log, so 10^5 names took minutes (10^4: 10 s, found by the fuzzer) and the 2^20
-    // the header may name, hours. The files are missing: the first is named, in a second.
+    // the header may name, hours. Only the last file exists (so that the list is made): the
+    // first is named, in a second.
     let dir = tempfile::tempdir().unwrap();
     let header = dir.path().join("p.mhd");
     std::fs::write(
@@ -555,6 +556,7 @@ fn metaimage_pattern_of_100000_slice_files_is_read_without_a_scan_per_file() {
         "NDims = 3\nDimSize = 1 1 100000\nElementType = MET_UCHAR\nElementDataFile = s%06d.raw 1 100000 1\n",
     )
     .unwrap();
+    std::fs::write(dir.path().join("s100000.raw"), [7u8]).unwrap();
     let (send, receive) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         let _ = send.send(formats::metaimage::read_metaimage(&header).map(|_| ()));
@@ -565,6 +567,27 @@ fn metaimage_pattern_of_100000_slice_files_is_read_without_a_scan_per_file() {
         .unwrap_err();
     assert!(
         matches!(&e, FormatError::Io { path, .. } if path.ends_with("s000001.raw")),
+        "{e}"
+    );
+}
+
+#[test]
+fn metaimage_pattern_whose_last_file_is_missing_is_refused_before_listing_its_files() {
+    // Found by the fuzzer: 91 bytes naming 882,185 slice files made a list of their names
+    // (and input-log entries, and one lazy map each) past 512 MB before any file was looked
+    // at. The last file is checked first.
+    let dir = tempfile::tempdir().unwrap();
+    let header = dir.path().join("h.mhd");
+    std::fs::write(
+        &header,
+        "NDims = 3\nDimSize =223 7  882185\nElementType= MET_UCHAR\nElementDataFile = s000%0730334409d3\n",
+    )
+    .unwrap();
+    std::fs::write(dir.path().join(format!("s000{:064}3", 1)), [0u8; 1561]).unwrap();
+    let e = formats::metaimage::read_metaimage(&header).unwrap_err();
+    let last = format!("s000{:064}3", 882_185);
+    assert!(
+        matches!(&e, FormatError::Io { path, .. } if path.ends_with(&last)),
         "{e}"
     );
 }

@@ -95,6 +95,11 @@ impl ViewerApp {
         self.rt.data.as_ref()
     }
 
+    /// The viewport's size in pixels (the full-resolution render size).
+    pub fn viewport_px(&self) -> [u32; 2] {
+        self.rt.viewport_px
+    }
+
     pub fn shown_frame(&self) -> Option<&ShownFrame> {
         self.rt.shown.as_ref()
     }
