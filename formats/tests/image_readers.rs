@@ -442,9 +442,24 @@ fn bad_metaimage_files_are_clear_errors() {
         matches!(&e, FormatError::BadValue { field, .. } if field == "ElementSpacing"),
         "{e}"
     );
-    // A missing slice file of a pattern.
+    // A missing slice file of a pattern: the last is looked at first (before the list of
+    // all is made), then each in order.
     let e = mi(
         &["pattern_u8.mhd", "slices/pat_001.raw", "slices/pat_003.raw"],
+        "pattern_u8.mhd",
+        &|_| {},
+    );
+    assert!(
+        matches!(&e, FormatError::Io { path, .. } if path.ends_with("pat_011.raw")),
+        "{e}"
+    );
+    let e = mi(
+        &[
+            "pattern_u8.mhd",
+            "slices/pat_001.raw",
+            "slices/pat_003.raw",
+            "slices/pat_011.raw",
+        ],
         "pattern_u8.mhd",
         &|_| {},
     );
