@@ -9,6 +9,7 @@
 //! - [`renderer`]: [`render`] / [`render_into`] (reuses the frame's buffers) — tiles over rayon, primary packets, transparency by depth
 //!   peeling, shadow rays, progressive scale, cancellation — producing a [`Frame`]
 //!   (RGBA8 + first-hit depth + statistics).
+//! - [`supersample`]: anti-aliasing, `k × k` samples per pixel averaged (box filter).
 //! - [`analytic`]: an exact sphere-field scene, the truth for renderer tests.
 //!
 //! The renderer only talks to data through [`IsoScene`], so it is generic over the
@@ -21,6 +22,7 @@ pub mod renderer;
 pub mod scene;
 pub mod settings;
 mod shade;
+pub mod supersample;
 
 pub use camera::{Camera, CameraError, Projection, RayGen};
 pub use renderer::{Frame, RayCounts, TILE, render, render_into};

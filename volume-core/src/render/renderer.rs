@@ -115,6 +115,23 @@ pub fn render_into<S: IsoScene>(
     cancel: &AtomicBool,
     frame: &mut Frame,
 ) -> bool {
+    let k = settings.supersample;
+    if k > 1 && settings.scale <= 1 {
+        // Out-of-range factors are refused by `validate`; here they only stay in bounds.
+        let k = k.min(crate::render::supersample::MAX_SUPERSAMPLE);
+        let fine_settings = RenderSettings {
+            width: settings.width.saturating_mul(k),
+            height: settings.height.saturating_mul(k),
+            supersample: 1,
+            ..settings.clone()
+        };
+        let mut fine = Frame::default();
+        if !render_into(scene, camera, &fine_settings, cancel, &mut fine) {
+            return false;
+        }
+        crate::render::supersample::downsample_into(&fine, k, frame);
+        return true;
+    }
     let shadows = settings.shadows && Shader::new(&settings.light).casts_shadows();
     match (settings.collect_stats, shadows) {
         (false, false) => render_impl::<S, NoStats, false>(scene, camera, settings, cancel, frame),
@@ -783,6 +800,76 @@ mod tests {
             .collect();
         assert_eq!(&pixel(&shell, 16, 16)[..3], &want[..]);
         assert_eq!(shell.depth[16 * 33 + 16], 8.0);
+    }
+
+    #[test]
+    fn supersampled_pixels_hold_the_share_of_their_samples_that_hit_the_sphere() {
+        // Flat white on black: a pixel's value is 255 times the share of its k×k samples
+        // whose ray meets the sphere, which the test counts analytically.
+        let (centre, radius) = (Vec3::new(0.13, -0.07, 0.0), 1.0);
+        let scene = SphereScene::distance_field(centre, cube(3.0));
+        let cam = Camera {
+            projection: Projection::Orthographic,
+            ortho_height: Some(2.6),
+            ..cam_z(10.0)
+        };
+        let (w, h, k) = (23u32, 19u32, 3u32);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            surfaces: vec![Surface::new(radius, [1.0, 1.0, 1.0])],
+            background: [0.0, 0.0, 0.0],
+            light: Light {
+                ambient: 1.0,
+                diffuse: 0.0,
+                specular: 0.0,
+                fill: 0.0,
+                ..Light::default()
+            },
+            supersample: k,
+            ..RenderSettings::default()
+        };
+        settings.validate().unwrap();
+        let frame = render(&scene, &cam, &settings, &go()).unwrap();
+        assert_eq!((frame.width, frame.height), (w, h));
+        assert_eq!(frame.rays.primary, u64::from(w * h * k * k));
+        let hits = |i: u32, j: u32| {
+            let r = cam.primary_ray(i, j, w * k, h * k);
+            // Ray–sphere: the distance of the centre from the ray's line.
+            let oc = centre - r.origin;
+            let along = oc.dot(r.dir);
+            (oc - r.dir * along).length() < radius
+        };
+        let mut partial = 0;
+        for j in 0..h {
+            for i in 0..w {
+                let n = (0..k * k)
+                    .filter(|s| hits(i * k + s % k, j * k + s / k))
+                    .count() as f32;
+                let want = 255.0 * n / (k * k) as f32;
+                let got = f32::from(pixel(&frame, i, j)[0]);
+                // One sample on the silhouette may fall either way.
+                assert!(
+                    (got - want).abs() <= 255.0 / (k * k) as f32 + 1.0,
+                    "pixel {i},{j}: {got} for {n} of {} samples",
+                    k * k
+                );
+                partial += usize::from(got > 0.0 && got < 255.0);
+                let d = frame.depth[(j * w + i) as usize];
+                // The nearest of the samples' hits: finite where any sample hit.
+                if got > 0.0 {
+                    assert!(d.is_finite(), "pixel {i},{j} shows the sphere, depth {d}");
+                } else if n == 0.0 {
+                    assert!(d.is_infinite(), "pixel {i},{j} misses, depth {d}");
+                }
+            }
+        }
+        assert!(partial > 10, "silhouette pixels are blended: {partial}");
+        let mut bad = settings.clone();
+        bad.supersample = crate::render::supersample::MAX_SUPERSAMPLE + 1;
+        assert!(bad.validate().is_err());
+        bad.supersample = 0;
+        assert!(bad.validate().is_err());
     }
 
     #[test]

@@ -125,6 +125,9 @@ pub struct RenderSettings {
     pub scale: u32,
     /// Primary rays in packets (`IsoScene::first_hit_packet`) rather than one by one.
     pub packets: bool,
+    /// Anti-aliasing at full resolution (`scale` 1): `supersample²` samples per pixel,
+    /// averaged ([`crate::render::supersample`]); 1 is off.
+    pub supersample: u32,
 }
 
 impl Default for RenderSettings {
@@ -141,6 +144,7 @@ impl Default for RenderSettings {
             collect_stats: false,
             scale: 1,
             packets: true,
+            supersample: 1,
         }
     }
 }
@@ -167,6 +171,12 @@ pub enum SettingsError {
     Background([f32; 3]),
     #[error("scale must be at least 1")]
     Scale,
+    #[error(
+        "supersampling {k} must be between 1 and {max}, and the image size times it at most {side}",
+        max = crate::render::supersample::MAX_SUPERSAMPLE,
+        side = MAX_IMAGE_SIDE
+    )]
+    Supersample { k: u32 },
 }
 
 fn unit_color(c: [f32; 3]) -> bool {
@@ -263,6 +273,14 @@ impl RenderSettings {
         }
         if self.scale == 0 {
             return Err(SettingsError::Scale);
+        }
+        let k = self.supersample;
+        let max_side = self.width.max(self.height);
+        if k == 0
+            || k > crate::render::supersample::MAX_SUPERSAMPLE
+            || max_side.saturating_mul(k) > MAX_IMAGE_SIDE
+        {
+            return Err(SettingsError::Supersample { k });
         }
         Ok(())
     }
