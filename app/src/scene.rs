@@ -68,7 +68,7 @@ use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::ooc::{AnyOocVolume, OocOptions};
 use volume_core::render::SceneVisitor;
-use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, render};
+use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, Surface, render};
 use volume_core::series::TimeSeries;
 use volume_core::stats::Histogram;
 use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
@@ -192,6 +192,23 @@ pub enum ProbeLocation {
     },
     /// A mesh: the tet holding the position and its barycentric coordinates.
     Tet { tet: usize, barycentric: [f64; 4] },
+}
+
+/// What one pixel of a rendered frame shows ([`AnyScene::pick`]): the viewer's picking and
+/// `render --pick`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Pick {
+    /// The pixel, in the frame's own size (row 0 at the top).
+    pub pixel: [u32; 2],
+    /// The hit's ray parameter: world units along the unit primary ray.
+    pub t: f32,
+    /// The hit, world units.
+    pub world: [f64; 3],
+    /// The visible surface whose isovalue is nearest the value there (the one hit), as an
+    /// index into the surfaces rendered.
+    pub surface: Option<usize>,
+    /// The data at the hit; `None` when the hit lies outside the data.
+    pub probe: Option<Probe>,
 }
 
 /// A loaded scene of any kind (module docs).
@@ -542,6 +559,44 @@ impl AnyScene {
             gradient_world: gradient.to_array(),
             normal: gradient.try_normalize().map(|n| n.to_array()),
             location,
+        }))
+    }
+
+    /// What pixel `pixel` of a frame of `size` pixels seen by `camera` shows, given the
+    /// frame's depth `t` there (infinite: no hit, `None`): the hit's world position, the data
+    /// there ([`Self::probe`]) and which of `surfaces` it lies on.
+    pub fn pick(
+        &self,
+        camera: &Camera,
+        surfaces: &[Surface],
+        size: [u32; 2],
+        pixel: [u32; 2],
+        t: f32,
+    ) -> anyhow::Result<Option<Pick>> {
+        if !t.is_finite() {
+            return Ok(None);
+        }
+        let ray = camera.primary_ray(pixel[0], pixel[1], size[0], size[1]);
+        let to_f64 = |v: glam::Vec3| glam::DVec3::from(v.to_array().map(f64::from));
+        let world = to_f64(ray.origin) + to_f64(ray.dir) * f64::from(t);
+        let probe = self.probe(world)?;
+        let surface = probe.and_then(|p| {
+            surfaces
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.is_active())
+                .min_by(|(_, a), (_, b)| {
+                    let d = |s: &Surface| (f64::from(s.isovalue) - p.value).abs();
+                    d(a).total_cmp(&d(b))
+                })
+                .map(|(i, _)| i)
+        });
+        Ok(Some(Pick {
+            pixel,
+            t,
+            world: world.to_array(),
+            surface,
+            probe,
         }))
     }
 

@@ -319,7 +319,7 @@ impl Scene {
 
     /// Renders the isosurfaces; see the stub for the arguments. `camera` or `orbit=(az, el)`
     /// (default `(30, 20)`, framing the data as the CLI's `--orbit`).
-    #[pyo3(signature = (isovalues=None, *, camera=None, orbit=None, vfov=40.0, size=(800, 600), shadows=false, light_dir=None, clip_boxes=None, clip_planes=None, layers=4, background=None, level_timeout=120.0))]
+    #[pyo3(signature = (isovalues=None, *, camera=None, orbit=None, vfov=40.0, size=(800, 600), shadows=false, light_dir=None, clip_boxes=None, clip_planes=None, layers=4, background=None, supersample=1, level_timeout=120.0))]
     fn render(
         &self,
         py: Python<'_>,
@@ -334,6 +334,7 @@ impl Scene {
         clip_planes: Option<Vec<Bound<'_, PyAny>>>,
         layers: u32,
         background: Option<Bound<'_, PyAny>>,
+        supersample: u32,
         level_timeout: f64,
     ) -> PyResult<Image> {
         let specs = isovalues
@@ -390,6 +391,7 @@ impl Scene {
                 Some(b) => color(b, "background")?,
                 None => defaults.background,
             },
+            supersample,
             ..defaults
         };
         settings.validate().py_err()?;

@@ -80,6 +80,28 @@ def test_clips_shadows_and_cameras_match_the_cli(cli_render, tmp_path):
     assert png_bytes_of(img, tmp_path) == png
 
 
+def test_supersampling_averages_the_rays_of_a_larger_image_as_the_cli_does(cli_render, tmp_path):
+    scene = isoscope.Scene(isoscope.open(PHANTOM))
+    cam = isoscope.Camera(eye=(300, -250, 120), target=(0, 0, 0), up=(0, 0, 1), vfov_deg=35)
+    k = 3
+    small = scene.render([(500, "#d0d0c0")], camera=cam, size=SIZE, supersample=k)
+    big = scene.render([(500, "#d0d0c0")], camera=cam, size=(SIZE[0] * k, SIZE[1] * k))
+    # The box filter by numpy: each k x k block of the big image, rounded to nearest.
+    blocks = big.rgba.astype(np.uint32).reshape(SIZE[1], k, SIZE[0], k, 4).sum(axis=(1, 3))
+    np.testing.assert_array_equal(small.rgba, ((blocks + k * k // 2) // (k * k)).astype(np.uint8))
+    nearest = big.depth.reshape(SIZE[1], k, SIZE[0], k).min(axis=(1, 3))
+    np.testing.assert_array_equal(small.depth, nearest)
+    cam_file = tmp_path / "cam.json"
+    cam_file.write_text(cam.to_json())
+    png, depth = cli_render(
+        PHANTOM, "--iso", "500:#d0d0c0", "--camera", cam_file, "--size", SIZE_ARG, "--supersample", str(k)
+    )
+    np.testing.assert_array_equal(small.depth, depth)
+    assert png_bytes_of(small, tmp_path) == png
+    with pytest.raises(ValueError, match="supersampling 9"):
+        scene.render([500], size=SIZE, supersample=9)
+
+
 def test_changing_isovalues_needs_no_rebuild_and_matches_fresh_scenes():
     vol = isoscope.open(PHANTOM)
     scene = isoscope.Scene(vol)

@@ -23,7 +23,9 @@ use super::render::{Rendered, SceneArgs, render_scene};
 use crate::progress::Progress;
 
 /// The world axis an orbit turns about.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
 pub enum Axis {
     X,
     Y,
@@ -31,7 +33,17 @@ pub enum Axis {
 }
 
 impl Axis {
-    fn unit(self) -> Vec3 {
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            Axis::X => "x",
+            Axis::Y => "y",
+            Axis::Z => "z",
+        }
+    }
+
+    pub fn unit(self) -> Vec3 {
         match self {
             Axis::X => Vec3::X,
             Axis::Y => Vec3::Y,
@@ -117,19 +129,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         bail!("--frames {frames} must be between 1 and {MAX_FRAMES}");
     }
     let replace = Replace::from_force(args.force);
-    if args.output.exists() && !args.output.is_dir() {
-        bail!(
-            "{}: is a file; -o names the folder for the frames",
-            args.output.display()
-        );
-    }
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("{}: cannot make the folder", args.output.display()))?;
-    // Every frame name is checked before the first is drawn: no half-written sequence
-    // because frame 40 would replace an input or an old frame.
-    for k in 0..frames {
-        formats::output::check_output(&frame_path(&args.output, k), replace)?;
-    }
+    prepare_folder(&args.output, frames, replace)?;
     let level_timeout = a.ooc.level_timeout()?;
     if args.time {
         scene.set_step(0)?;
@@ -164,23 +164,56 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
             .with_file_name("frame_%04d.png")
             .display()
     );
-    encode_mp4(&args.output, args.fps, replace)
+    match encode_mp4(&args.output, args.fps, replace)? {
+        Encoded::Mp4(movie) => eprintln!("movie -> {}", movie.display()),
+        Encoded::NoFfmpeg => eprintln!("note: {}", no_ffmpeg_note(&args.output, args.fps)),
+    }
+    Ok(())
 }
 
-/// `DIR/movie.mp4` from the frames by `ffmpeg`, if it is on the PATH; a note otherwise.
-fn encode_mp4(dir: &Path, fps: f32, replace: Replace) -> anyhow::Result<()> {
+/// Makes the folder for `frames` frames and checks every frame name before the first is
+/// drawn: no half-written sequence because frame 40 would replace an input or an old frame.
+pub fn prepare_folder(dir: &Path, frames: usize, replace: Replace) -> anyhow::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        bail!(
+            "{}: is a file; a movie's output names the folder for the frames",
+            dir.display()
+        );
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot make the folder", dir.display()))?;
+    for k in 0..frames {
+        formats::output::check_output(&frame_path(dir, k), replace)?;
+    }
+    Ok(())
+}
+
+/// What [`encode_mp4`] made.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Encoded {
+    Mp4(PathBuf),
+    /// `ffmpeg` is not on the PATH: the frames stay, without a movie.
+    NoFfmpeg,
+}
+
+/// What to tell a user without `ffmpeg`.
+pub fn no_ffmpeg_note(dir: &Path, fps: f32) -> String {
+    format!(
+        "ffmpeg is not on the PATH, so no movie.mp4: the PNG frames are in {} \
+         (e.g. `ffmpeg -framerate {fps} -i frame_%04d.png -pix_fmt yuv420p movie.mp4` there)",
+        dir.display()
+    )
+}
+
+/// `DIR/movie.mp4` from the frames by `ffmpeg`, if it is on the PATH.
+pub fn encode_mp4(dir: &Path, fps: f32, replace: Replace) -> anyhow::Result<Encoded> {
     let movie = dir.join("movie.mp4");
     let has_ffmpeg = Command::new("ffmpeg")
         .arg("-version")
         .output()
         .is_ok_and(|o| o.status.success());
     if !has_ffmpeg {
-        eprintln!(
-            "note: ffmpeg is not on the PATH, so no movie.mp4: the PNG frames are in {} \
-             (e.g. `ffmpeg -framerate {fps} -i frame_%04d.png -pix_fmt yuv420p movie.mp4` there)",
-            dir.display()
-        );
-        return Ok(());
+        return Ok(Encoded::NoFfmpeg);
     }
     formats::output::check_output(&movie, replace)?;
     // ffmpeg writes a temporary name, renamed when it succeeded: a failed encode leaves no
@@ -207,8 +240,7 @@ fn encode_mp4(dir: &Path, fps: f32, replace: Replace) -> anyhow::Result<()> {
     }
     std::fs::rename(&partial, &movie)
         .with_context(|| format!("{}: cannot rename the encoded movie", movie.display()))?;
-    eprintln!("movie -> {}", movie.display());
-    Ok(())
+    Ok(Encoded::Mp4(movie))
 }
 
 #[cfg(test)]

@@ -7,10 +7,11 @@
 use std::path::PathBuf;
 
 use glam::DVec3;
+use volume_core::render::Surface;
 
 use super::open_args::{MeshArgs, OocArgs, OpenArgs};
 use super::render::{open_with_flags, parse_vec3};
-use crate::scene::{Probe, ProbeLocation};
+use crate::scene::{Pick, Probe, ProbeLocation};
 use crate::values::ValueFormat;
 
 /// Arguments of `isoscope probe`.
@@ -50,6 +51,34 @@ pub fn probe_text(p: &Probe) -> String {
         "value {}; {place}; gradient {}; normal {normal}",
         f.value(p.value),
         v3(p.gradient_world)
+    )
+}
+
+/// What a picked pixel shows, in one line (`render --pick`, the viewer's pick panel): the
+/// surface hit, the ray parameter, the world position and the data there ([`probe_text`]).
+pub fn pick_text(pick: Option<&Pick>, surfaces: &[Surface]) -> String {
+    let Some(p) = pick else {
+        return "no surface".to_string();
+    };
+    let f32s = ValueFormat::F32;
+    let f = ValueFormat::F64;
+    let t = f32s.value(f64::from(p.t));
+    let Some(probe) = &p.probe else {
+        return format!("a hit at t = {t} outside the data");
+    };
+    let surface = p
+        .surface
+        .and_then(|i| surfaces.get(i).map(|s| (i, s)))
+        .map_or_else(String::new, |(i, s)| {
+            format!("surface {i} (iso {}); ", f32s.value(f64::from(s.isovalue)))
+        });
+    let [x, y, z] = p.world;
+    format!(
+        "{surface}t = {t}; world {}, {}, {}; {}",
+        f.value(x),
+        f.value(y),
+        f.value(z),
+        probe_text(probe)
     )
 }
 

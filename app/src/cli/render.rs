@@ -135,6 +135,9 @@ pub struct SceneArgs {
     /// Most transparent layers composited per pixel.
     #[arg(long, value_name = "N", default_value_t = 4)]
     pub layers: u32,
+    /// Anti-aliasing: K×K rays per pixel, averaged (1 to 8; 1 is off).
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub supersample: u32,
     /// Background colour.
     #[arg(long, value_name = "#RRGGBB", value_parser = parse_color)]
     pub background: Option<[f32; 3]>,
@@ -224,41 +227,13 @@ fn print_picks(
     settings: &RenderSettings,
     frame: &Frame,
 ) -> anyhow::Result<()> {
-    let f = crate::values::ValueFormat::F64;
     for &[px, py] in picks {
         let t = frame.depth[(py * frame.width + px) as usize];
-        if !t.is_finite() {
-            println!("pick {px},{py}: no surface");
-            continue;
-        }
-        let ray = camera.primary_ray(px, py, frame.width, frame.height);
-        let to_f64 = |v: Vec3| glam::DVec3::from(v.to_array().map(f64::from));
-        let world = to_f64(ray.origin) + to_f64(ray.dir) * f64::from(t);
-        let Some(probe) = scene.probe(world)? else {
-            println!("pick {px},{py}: a hit at t = {t} outside the data");
-            continue;
-        };
-        // The surface whose isovalue the interpolated value is nearest: the one hit.
-        let surface = settings
-            .surfaces
-            .iter()
-            .enumerate()
-            .filter(|(_, s)| s.visible)
-            .min_by(|(_, a), (_, b)| {
-                let d = |s: &Surface| (f64::from(s.isovalue) - probe.value).abs();
-                d(a).total_cmp(&d(b))
-            });
-        let f32s = crate::values::ValueFormat::F32;
-        let surface = surface.map_or_else(String::new, |(i, s)| {
-            format!("surface {i} (iso {}); ", f32s.value(f64::from(s.isovalue)))
-        });
+        let size = [frame.width, frame.height];
+        let pick = scene.pick(camera, &settings.surfaces, size, [px, py], t)?;
         println!(
-            "pick {px},{py}: {surface}t = {}; world {}, {}, {}; {}",
-            f32s.value(f64::from(t)),
-            f.value(world.x),
-            f.value(world.y),
-            f.value(world.z),
-            super::probe::probe_text(&probe)
+            "pick {px},{py}: {}",
+            super::probe::pick_text(pick.as_ref(), &settings.surfaces)
         );
     }
     Ok(())
@@ -391,6 +366,7 @@ pub fn settings_from(
         light,
         background: args.background.unwrap_or(defaults.background),
         collect_stats,
+        supersample: args.supersample,
         ..defaults
     };
     if args.layers == 0 {

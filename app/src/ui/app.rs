@@ -29,7 +29,7 @@ use std::sync::Arc;
 use super::backend::{Backend, CoreBackend, LoadedData, LodStatus, OpenChoices, RenderRequest};
 use super::commands::Command;
 use super::job_table::JobTable;
-use super::panels::{self, Prefs};
+use super::panels::{self, Prefs, ReopenLast};
 use super::runtime::{Notification, Runtime, ShownFrame, ViewerStats};
 use super::state::ViewerState;
 
@@ -56,9 +56,30 @@ impl ViewerApp {
             .storage
             .and_then(|s| eframe::get_value::<Prefs>(s, PREFS_KEY))
             .unwrap_or_default();
+        let given = !files.is_empty();
         let mut app = Self::with_backend(&cc.egui_ctx, Arc::new(CoreBackend), files);
-        app.prefs = prefs;
+        app.start_with_prefs(prefs, given);
         app
+    }
+
+    /// Takes the preferences saved by an earlier run; without files given, reopens the
+    /// last session or offers to ([`ReopenLast`]).
+    pub fn start_with_prefs(&mut self, prefs: Prefs, files_given: bool) {
+        self.prefs = prefs;
+        let Some(last) = self.prefs.last_session.clone() else {
+            return;
+        };
+        if files_given || last.files.is_empty() {
+            return;
+        }
+        match self.prefs.reopen_last {
+            ReopenLast::Always => {
+                self.commands.retain(|c| *c != Command::OpenDefault);
+                self.restore_session(last);
+            }
+            ReopenLast::Ask => self.rt.reopen_offer = Some(last),
+            ReopenLast::Never => {}
+        }
     }
 
     /// The app with any backend (tests use a recording double).
@@ -86,6 +107,14 @@ impl ViewerApp {
         app
     }
 
+    /// Keeps the state as the session to reopen next time, when it shows files (the
+    /// embedded sample is not worth reopening; an earlier session stays).
+    pub fn remember_session(&mut self) {
+        if !self.state.files.is_empty() {
+            self.prefs.last_session = Some(self.state.clone());
+        }
+    }
+
     /// Queues a command for the start of the next frame.
     pub fn push(&mut self, command: Command) {
         self.commands.push(command);
@@ -98,6 +127,21 @@ impl ViewerApp {
     /// The viewport's size in pixels (the full-resolution render size).
     pub fn viewport_px(&self) -> [u32; 2] {
         self.rt.viewport_px
+    }
+
+    /// Where the image is drawn, in points (tests click into it).
+    pub fn viewport_rect(&self) -> egui::Rect {
+        self.rt.viewport_rect
+    }
+
+    /// The last pick (a click on the image) and what it found.
+    pub fn pick(&self) -> Option<&super::runtime::PickShown> {
+        self.rt.pick.as_ref()
+    }
+
+    /// Whether undo would change the view now.
+    pub fn can_undo(&self) -> bool {
+        self.rt.history.can_undo(&self.state)
     }
 
     pub fn shown_frame(&self) -> Option<&ShownFrame> {
@@ -159,6 +203,29 @@ impl ViewerApp {
     }
 }
 
+impl ViewerApp {
+    /// Ctrl+Z undoes, Ctrl+Shift+Z or Ctrl+Y redoes, unless a text field has the keys
+    /// (it has its own undo).
+    fn undo_keys(&mut self, ctx: &egui::Context) {
+        if ctx.memory(|m| m.focused().is_some()) {
+            return;
+        }
+        let (undo, redo) = ctx.input_mut(|i| {
+            use egui::{Key, KeyboardShortcut, Modifiers};
+            let redo = i.consume_shortcut(&KeyboardShortcut::new(
+                Modifiers::COMMAND | Modifiers::SHIFT,
+                Key::Z,
+            )) || i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::Y));
+            let undo = i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::Z));
+            (undo, redo)
+        });
+        if redo || undo {
+            self.push(if redo { Command::Redo } else { Command::Undo });
+            ctx.request_repaint();
+        }
+    }
+}
+
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
@@ -187,9 +254,16 @@ impl eframe::App for ViewerApp {
 
         self.advance_playback(&ctx);
         self.schedule(&ctx);
+        self.undo_keys(&ctx);
+        if self.rt.history.feed(ctx.input(|i| i.time), &self.state) {
+            // Without further input the edit still becomes an undo point.
+            let stable = super::history::STABLE_S + 0.05;
+            ctx.request_repaint_after(std::time::Duration::from_secs_f32(stable));
+        }
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        self.remember_session();
         eframe::set_value(storage, PREFS_KEY, &self.prefs);
     }
 }

@@ -85,6 +85,9 @@ pub struct RenderedImage {
     pub height: u32,
     /// Row 0 at the top, 4 bytes per pixel, not premultiplied.
     pub rgba8: Vec<u8>,
+    /// The first hit's ray parameter per pixel (row 0 at the top), infinite where no
+    /// surface was hit: what picking reads. Empty when the backend keeps no depth.
+    pub depth: Vec<f32>,
     pub elapsed: Duration,
     /// Primary rays traced.
     pub rays: u64,
@@ -136,6 +139,19 @@ pub trait PreparedScene: Send + Sync {
     /// Out-of-core loading progress; `None` for in-core data. Never blocks.
     fn lod_status(&self) -> Option<LodStatus> {
         None
+    }
+
+    /// What pixel `pixel` of a frame of `size` pixels rendered for `request` shows, given
+    /// its depth `t` ([`crate::scene::AnyScene::pick`]). Call from a job: probing a mesh
+    /// visits every tet.
+    fn pick(
+        &self,
+        _request: &RenderRequest,
+        _size: [u32; 2],
+        _pixel: [u32; 2],
+        _t: f32,
+    ) -> Result<Option<crate::scene::Pick>, String> {
+        Err("this data cannot be probed".to_string())
     }
 }
 

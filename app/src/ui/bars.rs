@@ -38,9 +38,44 @@ impl ViewerApp {
                 if ui.button("Open session…").clicked() {
                     self.commands.push(Command::PickLoadSession);
                 }
+                let last = self.prefs.last_session.clone();
+                if ui
+                    .add_enabled(last.is_some(), egui::Button::new("Reopen last session"))
+                    .clicked()
+                    && let Some(last) = last
+                {
+                    self.commands.push(Command::RestoreSession(Box::new(last)));
+                }
+                ui.menu_button("Reopen last session at start", |ui| {
+                    for choice in super::panels::ReopenLast::ALL {
+                        ui.radio_value(&mut self.prefs.reopen_last, choice, choice.label());
+                    }
+                });
                 ui.separator();
                 if ui.button("Screenshot…").clicked() {
                     self.rt.screenshot_window = true;
+                }
+                if ui.button("Movie…").clicked() {
+                    self.rt.movie_window = true;
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let can_undo = self.rt.history.can_undo(&self.state);
+                let can_redo = self.rt.history.can_redo(&self.state);
+                if ui
+                    .add_enabled(can_undo, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
+                    .clicked()
+                {
+                    self.commands.push(Command::Undo);
+                }
+                if ui
+                    .add_enabled(
+                        can_redo,
+                        egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z"),
+                    )
+                    .clicked()
+                {
+                    self.commands.push(Command::Redo);
                 }
             });
             ui.menu_button("View", |ui| {

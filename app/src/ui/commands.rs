@@ -72,14 +72,23 @@ pub enum Command {
     PickSaveSession,
     PickLoadSession,
     /// Renders at `width × height` and saves a PNG; an existing file is replaced only when
-    /// `replace` (the window's "Replace an existing file" box).
+    /// `replace` (the window's "Replace an existing file" box), with `supersample ×
+    /// supersample` samples per pixel.
     Screenshot {
         path: PathBuf,
         width: u32,
         height: u32,
         replace: bool,
+        supersample: u32,
     },
     CancelJobs,
+    /// Records a movie (File → Movie…).
+    Movie(Box<super::movie::MovieSettings>),
+    /// Restores a session held in memory (the last session, reopened).
+    RestoreSession(Box<ViewerState>),
+    /// Undoes the last surface, clip or camera edit ([`super::history`]).
+    Undo,
+    Redo,
 }
 
 impl ViewerApp {
@@ -195,7 +204,8 @@ impl ViewerApp {
                 width,
                 height,
                 replace,
-            } => self.start_screenshot(path, width, height, replace),
+                supersample,
+            } => self.start_screenshot(path, [width, height], replace, supersample),
             Command::CancelJobs => {
                 // Dropping a job raises its cancel flag (the open stops at its next
                 // checkpoint); the data on screen stays. A running step or field switch is
@@ -209,7 +219,23 @@ impl ViewerApp {
                 self.jobs.render.cancel();
                 self.rt.pending_render = None;
                 self.jobs.screenshot.cancel();
+                self.jobs.movie.cancel();
                 self.state.time.playing = false;
+            }
+            Command::Movie(settings) => self.start_movie(*settings),
+            Command::RestoreSession(session) => {
+                self.rt.reopen_offer = None;
+                self.restore_session(*session);
+            }
+            Command::Undo => {
+                if !self.rt.history.undo(&mut self.state) {
+                    self.notify("nothing to undo", false);
+                }
+            }
+            Command::Redo => {
+                if !self.rt.history.redo(&mut self.state) {
+                    self.notify("nothing to redo", false);
+                }
             }
             Command::RemoveSurface(_) | Command::RemoveClipBox(_) | Command::RemoveClipPlane(_) => {
             }

@@ -136,7 +136,15 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
         collect_stats: false,
         scale: request.scale.max(1),
         packets: true,
+        supersample: supersample_for(o.supersample, request.width.max(request.height)),
     }
+}
+
+/// The supersampling factor `wanted` within what the renderer takes for an image whose
+/// larger side is `side` pixels (at least 1).
+pub fn supersample_for(wanted: u32, side: u32) -> u32 {
+    let fits = volume_core::render::MAX_IMAGE_SIDE / side.max(1);
+    wanted.min(volume_core::render::supersample::MAX_SUPERSAMPLE).min(fits).max(1)
 }
 
 /// An opened scene of any kind behind a lock: renders take the read lock, step switches
@@ -217,10 +225,24 @@ impl PreparedScene for CorePrepared {
                 width: f.width,
                 height: f.height,
                 rgba8: f.rgba8,
+                depth: f.depth,
                 elapsed: f.elapsed,
                 rays: f.rays.primary,
                 lod_level,
             }))
+    }
+
+    fn pick(
+        &self,
+        request: &RenderRequest,
+        size: [u32; 2],
+        pixel: [u32; 2],
+        t: f32,
+    ) -> Result<Option<crate::scene::Pick>, String> {
+        let scene = self.scene.read().map_err(poisoned)?;
+        scene
+            .pick(&camera(request), &settings(request).surfaces, size, pixel, t)
+            .map_err(|e| crate::cli::error_text(&e))
     }
 
     fn set_step(&self, step: usize, _control: &JobControl) -> Result<StepSwitch, String> {

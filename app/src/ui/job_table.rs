@@ -16,6 +16,7 @@ use std::time::Instant;
 use super::backend::{LoadedData, RenderRequest, RenderedImage, StepSwitch, ValueInfo};
 use super::commands::Command;
 use super::jobs::{Job, take_finished};
+use super::runtime::PickShown;
 use super::state::ViewerState;
 
 /// At most one running job of a kind, with what is known about it while it runs.
@@ -100,6 +101,11 @@ pub struct JobTable {
     pub screenshot: Slot<(), Result<PathBuf, String>>,
     pub save_session: Slot<(), Result<PathBuf, String>>,
     pub load_session: Slot<(), Result<ViewerState, String>>,
+    /// Rendering and writing a movie's frames; the meta is true when it plays the time
+    /// steps (the scene's step is then the movie's).
+    pub movie: Slot<bool, Result<String, String>>,
+    /// Probing what a clicked pixel shows.
+    pub pick: Slot<(), Result<PickShown, String>>,
 }
 
 /// A finished job's result, for the viewer to apply. The outer `Result` of `result` is
@@ -130,6 +136,8 @@ pub enum Finished {
     ScreenshotSaved(Result<PathBuf, String>),
     SessionSaved(Result<PathBuf, String>),
     SessionLoaded(Result<ViewerState, String>),
+    Probed(Result<PickShown, String>),
+    MovieDone(Result<String, String>),
 }
 
 impl JobTable {
@@ -163,6 +171,12 @@ impl JobTable {
         if let Some(((), result)) = self.load_session.take_finished() {
             return Some(Finished::SessionLoaded(result.and_then(|r| r)));
         }
+        if let Some((_, result)) = self.movie.take_finished() {
+            return Some(Finished::MovieDone(result.and_then(|r| r)));
+        }
+        if let Some(((), result)) = self.pick.take_finished() {
+            return Some(Finished::Probed(result.and_then(|r| r)));
+        }
         None
     }
 
@@ -173,13 +187,17 @@ impl JobTable {
             || self.field.is_running()
             || self.render.is_running()
             || self.screenshot.is_running()
+            || self.movie.is_running()
             || self.save_session.is_running()
             || self.load_session.is_running()
     }
 
     /// True while a job runs that the Cancel button stops.
     pub fn is_cancellable(&self) -> bool {
-        self.load.is_running() || self.prefetch.is_running() || self.screenshot.is_running()
+        self.load.is_running()
+            || self.prefetch.is_running()
+            || self.screenshot.is_running()
+            || self.movie.is_running()
     }
 
     /// The status bar's rows: label, progress in [0, 1] and start of every job shown there.
@@ -194,6 +212,7 @@ impl JobTable {
             row(&self.prefetch),
             row(&self.field),
             row(&self.screenshot),
+            row(&self.movie),
             row(&self.save_session),
             row(&self.load_session),
         ]

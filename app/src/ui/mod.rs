@@ -8,9 +8,11 @@
 //! - Jobs: [`jobs`] runs one computation on a std thread with progress and cancel;
 //!   [`job_table`] holds every running job and hands finished ones back, in order;
 //!   [`scheduler`] decides which jobs the state asks for and applies their results.
-//! - Commands: [`commands`] holds the user intents queued by panels, keys and dialogs.
+//! - Commands: [`commands`] holds the user intents queued by panels, keys and dialogs;
+//!   [`history`] is the undo/redo of surface, clip and camera edits.
 //! - Drawing: [`panels`] (side-panel sections), [`bars`] (menu and status bar),
 //!   [`viewport`] (the image, mouse and keys), [`windows`] (dialogs, notifications),
+//!   [`movie`] (File → Movie…: orbit or time-series frames and MP4, in a job),
 //!   [`file_browser`] (the in-app Open/Save browser: no desktop portal needed).
 //! - The library link: [`backend`] (open files, build scenes, render, behind a trait so
 //!   tests drive the real UI with a recording double) and [`core_backend`] (the real one).
@@ -28,8 +30,10 @@ pub mod core_backend;
 pub mod file_browser;
 pub mod files;
 pub mod frame_upload;
+pub mod history;
 pub mod job_table;
 pub mod jobs;
+pub mod movie;
 pub mod orientation;
 pub mod panels;
 pub mod runtime;

@@ -30,6 +30,38 @@ pub struct Prefs {
     /// Replace an existing screenshot file (off: an existing file is an error, as without
     /// `--force` on the command line).
     pub screenshot_replace: bool,
+    /// Screenshots' anti-aliasing: `k × k` samples per pixel (1: off).
+    pub screenshot_supersample: u32,
+    /// The Movie window's settings.
+    pub movie: super::movie::MovieSettings,
+    /// Whether a start without files reopens the last session.
+    pub reopen_last: ReopenLast,
+    /// The state when the viewer last saved its preferences with files shown (absolute
+    /// paths): what "reopen the last session" restores.
+    pub last_session: Option<ViewerState>,
+}
+
+/// Whether `isoscope` without files reopens the last session's files, camera,
+/// isosurfaces and clips.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum ReopenLast {
+    Always,
+    /// Offer it in a window (the embedded sample shows meanwhile).
+    #[default]
+    Ask,
+    Never,
+}
+
+impl ReopenLast {
+    pub const ALL: [ReopenLast; 3] = [ReopenLast::Always, ReopenLast::Ask, ReopenLast::Never];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            ReopenLast::Always => "always",
+            ReopenLast::Ask => "ask",
+            ReopenLast::Never => "never",
+        }
+    }
 }
 
 impl Default for Prefs {
@@ -40,6 +72,10 @@ impl Default for Prefs {
             screenshot_size: [1920, 1080],
             screenshot_path: PathBuf::from("isoscope-screenshot.png"),
             screenshot_replace: false,
+            screenshot_supersample: 2,
+            movie: super::movie::MovieSettings::default(),
+            reopen_last: ReopenLast::default(),
+            last_session: None,
         }
     }
 }
@@ -463,11 +499,29 @@ pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState, kind: Option<Data
             });
         ui.label(egui::RichText::new(o.intersector.note()).small().weak());
     }
+    egui::ComboBox::from_label("Anti-aliasing when still")
+        .selected_text(supersample_label(o.supersample))
+        .show_ui(ui, |ui| {
+            for k in [1, 2, 3, 4] {
+                ui.selectable_value(&mut o.supersample, k, supersample_label(k));
+            }
+        })
+        .response
+        .on_hover_text("k×k rays per pixel, averaged, once the view stops moving");
     ui.add(slider(&mut o.max_layers, 1..=16).text("Transparency layers"));
     ui.checkbox(&mut o.shadows, "Shadows");
     ui.add(slider(&mut o.light_azimuth_deg, -180.0..=180.0).text("Light azimuth °"));
     ui.add(slider(&mut o.light_elevation_deg, -89.0..=89.0).text("Light elevation °"));
     color_button(ui, "Background", &mut o.background);
+}
+
+/// "off" or "k×k" for a supersampling factor.
+pub fn supersample_label(k: u32) -> String {
+    if k <= 1 {
+        "off".to_string()
+    } else {
+        format!("{k}×{k} samples")
+    }
 }
 
 /// Camera: view presets, field of view, projection, reset, bookmarks.
@@ -650,6 +704,27 @@ pub fn new_clip_plane() -> ClipPlaneState {
     ClipPlaneState::default()
 }
 
+/// The pick section: what the last click on the image hit (the CLI's `render --pick`
+/// line, a field per row), copyable.
+fn pick_ui(ui: &mut Ui, pick: &mut Option<super::runtime::PickShown>) {
+    let Some(p) = pick else {
+        ui.weak("Click the image to probe a point (hold Ctrl to follow the pointer).");
+        return;
+    };
+    for line in p.text.split("; ") {
+        ui.label(line);
+    }
+    let text = p.text.clone();
+    ui.horizontal(|ui| {
+        if ui.button("Copy").clicked() {
+            ui.ctx().copy_text(text);
+        }
+        if ui.button("Clear").clicked() {
+            *pick = None;
+        }
+    });
+}
+
 impl ViewerApp {
     /// The side panel: every section in a collapsible header.
     pub(super) fn side_ui(&mut self, ui: &mut Ui) {
@@ -666,6 +741,9 @@ impl ViewerApp {
                         &mut self.commands,
                     );
                 });
+            egui::CollapsingHeader::new("Pick")
+                .default_open(true)
+                .show(ui, |ui| pick_ui(ui, &mut self.rt.pick));
             egui::CollapsingHeader::new("Isosurfaces")
                 .default_open(true)
                 .show(ui, |ui| {

@@ -21,6 +21,19 @@ pub struct ShownFrame {
     pub size: [u32; 2],
     /// Out-of-core: the finest level the frame reached.
     pub lod_level: Option<usize>,
+    /// The frame's depth (ray parameter per pixel, infinite where nothing was hit), which
+    /// picking reads; empty when the backend keeps none.
+    pub depth: Vec<f32>,
+}
+
+/// The last pick (a click on the image): what the pick section shows and the viewport
+/// marks.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PickShown {
+    /// What the pixel shows, in the CLI's words (`render --pick`).
+    pub text: String,
+    /// The hit (`None`: no surface there).
+    pub pick: Option<crate::scene::Pick>,
 }
 
 /// A message for the user (errors from bad files, saved screenshots).
@@ -97,6 +110,7 @@ pub struct Runtime {
     pub file_browser: Option<super::file_browser::FileBrowser>,
     pub series_dialog: Option<SeriesDialog>,
     pub screenshot_window: bool,
+    pub movie_window: bool,
     pub notifications: Vec<Notification>,
     pub last_interaction: Option<Instant>,
     /// How long the last full-resolution frame took to render: playback draws full frames
@@ -105,6 +119,14 @@ pub struct Runtime {
     pub last_step_advance: Instant,
     /// The viewport's size in pixels (the full-resolution render size).
     pub viewport_px: [u32; 2],
+    /// Where the viewport is drawn, in points.
+    pub viewport_rect: egui::Rect,
+    /// The last pick's answer.
+    pub pick: Option<PickShown>,
+    /// Undo/redo of the shown data's surface, clip and camera edits.
+    pub history: super::history::History,
+    /// The last session, offered in a window at start ([`super::panels::ReopenLast::Ask`]).
+    pub reopen_offer: Option<ViewerState>,
 }
 
 impl Default for Runtime {
@@ -126,11 +148,16 @@ impl Default for Runtime {
             file_browser: None,
             series_dialog: None,
             screenshot_window: false,
+            movie_window: false,
             notifications: Vec::new(),
             last_interaction: None,
             last_full_frame: None,
             last_step_advance: Instant::now(),
             viewport_px: [0, 0],
+            viewport_rect: egui::Rect::NOTHING,
+            pick: None,
+            history: super::history::History::default(),
+            reopen_offer: None,
         }
     }
 }

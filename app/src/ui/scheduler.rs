@@ -20,7 +20,7 @@ use super::frame_upload::color_image;
 use super::job_table::{Finished, RenderTicket};
 use super::jobs::Job;
 use super::panels;
-use super::runtime::ShownFrame;
+use super::runtime::{PickShown, ShownFrame};
 use super::state::{CameraState, RawLayoutState, ViewerState};
 
 /// Progressive level used while the user interacts (one ray per 4×4 pixels).
@@ -132,6 +132,14 @@ impl ViewerApp {
                 Ok(session) => self.restore_session(session),
                 Err(e) => self.notify(e, true),
             },
+            Finished::MovieDone(result) => match result {
+                Ok(text) => self.notify(text, false),
+                Err(e) => self.notify(format!("movie: {e}"), true),
+            },
+            Finished::Probed(result) => match result {
+                Ok(pick) => self.rt.pick = Some(pick),
+                Err(e) => self.notify(format!("pick: {e}"), true),
+            },
         }
     }
 
@@ -165,6 +173,9 @@ impl ViewerApp {
         self.rt.prefetched.clear();
         self.jobs.render.cancel();
         self.rt.pending_render = None;
+        // Undo history and the last pick belong to the old data.
+        self.rt.history.clear();
+        self.rt.pick = None;
         if let Some(p) = &data.path {
             self.prefs.remember(p);
         }
@@ -231,6 +242,7 @@ impl ViewerApp {
                         rays: img.rays,
                         size: [width, height],
                         lod_level: img.lod_level,
+                        depth: img.depth,
                     });
                     self.rt.shown_times.push_back(Instant::now());
 
@@ -306,10 +318,11 @@ impl ViewerApp {
     }
 
     /// True when the scene holds the step the state asks for.
-    fn scene_ready(&self) -> bool {
+    pub(super) fn scene_ready(&self) -> bool {
         self.rt.data.is_some()
             && !self.jobs.step.is_running()
             && !self.jobs.field.is_running()
+            && !self.movie_plays_steps()
             && self.rt.scene_step == self.state.time.step
     }
 
@@ -367,9 +380,9 @@ impl ViewerApp {
     pub(super) fn start_screenshot(
         &mut self,
         path: PathBuf,
-        width: u32,
-        height: u32,
+        [width, height]: [u32; 2],
         replace: bool,
+        supersample: u32,
     ) {
         let Some(mut req) = self.desired_request(1) else {
             self.notify("screenshot: nothing to render yet", true);
@@ -384,6 +397,7 @@ impl ViewerApp {
         };
         req.width = width.clamp(1, MAX_RENDER_SIDE * 4);
         req.height = height.clamp(1, MAX_RENDER_SIDE * 4);
+        req.options.supersample = supersample;
         let job = Job::spawn("screenshot", self.repaint_fn(), move |control| {
             let img = scene
                 .render(&req, control.cancel_flag())?
@@ -402,6 +416,40 @@ impl ViewerApp {
             Ok(path)
         });
         self.jobs.screenshot.start((), job);
+    }
+
+    /// Probes what the frame on screen shows at `at` (fractions of its width and height
+    /// from the top left): the hit, the surface and the data there, in a job. A pick
+    /// still running is replaced.
+    pub(super) fn start_pick(&mut self, at: [f32; 2]) {
+        let (Some(shown), Some(data)) = (&self.rt.shown, &self.rt.data) else {
+            return;
+        };
+        let [w, h] = shown.size;
+        if shown.depth.len() != w as usize * h as usize || w == 0 || h == 0 {
+            return;
+        }
+        let pixel = [
+            ((at[0] * w as f32) as u32).min(w - 1),
+            ((at[1] * h as f32) as u32).min(h - 1),
+        ];
+        let t = shown.depth[(pixel[1] * w + pixel[0]) as usize];
+        let request = shown.request.clone();
+        let scene = Arc::clone(&data.scene);
+        let job = Job::spawn("pick", self.repaint_fn(), move |_| {
+            let pick = scene.pick(&request, [w, h], pixel, t)?;
+            let surfaces = super::core_backend::settings(&request).surfaces;
+            Ok(PickShown {
+                text: format!(
+                    "pixel {},{} of {w}x{h}: {}",
+                    pixel[0],
+                    pixel[1],
+                    crate::cli::probe::pick_text(pick.as_ref(), &surfaces)
+                ),
+                pick,
+            })
+        });
+        self.jobs.pick.start((), job);
     }
 
     // ---- what the state asks for --------------------------------------------------------
@@ -484,6 +532,9 @@ impl ViewerApp {
 
     /// Switches the scene to the wanted step (a refit job) and prefetches the next ones.
     fn schedule_step(&mut self) {
+        if self.movie_plays_steps() {
+            return;
+        }
         let Some(data) = &self.rt.data else { return };
         let scene = Arc::clone(&data.scene);
         let count = data.step_count();

@@ -334,6 +334,9 @@ pub struct RenderOptions {
     pub smooth_normals: bool,
     /// The orientation marker in the viewport's corner.
     pub orientation_marker: bool,
+    /// Anti-aliasing of the still (full-resolution) frame: `k × k` samples per pixel; 1 is
+    /// off. Frames while the view moves are never supersampled.
+    pub supersample: u32,
 }
 
 impl Default for RenderOptions {
@@ -347,6 +350,7 @@ impl Default for RenderOptions {
             background: [0.08, 0.08, 0.10],
             smooth_normals: false,
             orientation_marker: true,
+            supersample: 1,
         }
     }
 }

@@ -13,6 +13,7 @@ use super::scheduler::MAX_RENDER_SIDE;
 impl ViewerApp {
     pub(super) fn viewport_ui(&mut self, ui: &mut egui::Ui) {
         let rect = ui.available_rect_before_wrap();
+        self.rt.viewport_rect = rect;
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         let ppp = ui.ctx().pixels_per_point();
         self.rt.viewport_px = [
@@ -48,7 +49,9 @@ impl ViewerApp {
             );
         }
         self.handle_view_input(ui, &response, rect);
+        self.handle_pick_input(ui, &response, rect);
         self.draw_clip_outlines(&painter, rect);
+        self.draw_pick_marker(&painter, rect);
         self.draw_orientation_marker(&painter, rect);
     }
 
@@ -115,6 +118,38 @@ impl ViewerApp {
         }
         if moved {
             self.rt.last_interaction = Some(Instant::now());
+        }
+    }
+
+    /// A click on the image (without dragging), or moving the pointer with Ctrl held,
+    /// probes what the pixel shows (the pick section lists it).
+    fn handle_pick_input(&mut self, ui: &egui::Ui, response: &egui::Response, rect: Rect) {
+        let Some(pos) = response.hover_pos() else {
+            return;
+        };
+        let (ctrl_hover, moved) = ui.input(|i| (i.modifiers.command, i.pointer.delta() != Vec2::ZERO));
+        let clicked = response.clicked_by(egui::PointerButton::Primary);
+        if clicked || (ctrl_hover && moved && !self.jobs.pick.is_running()) {
+            let at = (pos - rect.min) / rect.size();
+            self.start_pick([at.x, at.y]);
+        }
+    }
+
+    /// A small cross where the last pick hit, following the camera.
+    fn draw_pick_marker(&self, painter: &egui::Painter, rect: Rect) {
+        let (Some(data), Some(world)) = (
+            &self.rt.data,
+            self.rt.pick.as_ref().and_then(|p| p.pick).map(|p| p.world),
+        ) else {
+            return;
+        };
+        let pose = CameraPose::from_state(&self.state.camera, &data.bounds);
+        let p = glam::Vec3::from(world.map(|v| v as f32));
+        if let Some(at) = pose.project(p, rect.width(), rect.height()) {
+            let c = rect.min + Vec2::from(at);
+            let stroke = Stroke::new(2.0, Color32::from_rgb(255, 60, 200));
+            painter.line_segment([c - Vec2::new(7.0, 0.0), c + Vec2::new(7.0, 0.0)], stroke);
+            painter.line_segment([c - Vec2::new(0.0, 7.0), c + Vec2::new(0.0, 7.0)], stroke);
         }
     }
 

@@ -14,6 +14,54 @@ use super::file_browser::BrowseOutcome;
 use super::panels;
 
 impl ViewerApp {
+    /// At start without files: offers the last session (its files, camera, isosurfaces and
+    /// clips), with the choice to stop asking.
+    fn reopen_offer_ui(&mut self, ctx: &egui::Context) {
+        let Some(last) = &self.rt.reopen_offer else {
+            return;
+        };
+        let mut answer = None;
+        egui::Window::new("Reopen the last session?")
+            .collapsible(false)
+            .resizable(false)
+            .show(ctx, |ui| {
+                for f in last.files.iter().take(4) {
+                    ui.label(f.display().to_string());
+                }
+                if last.files.len() > 4 {
+                    ui.label(format!("and {} more", last.files.len() - 4));
+                }
+                ui.label(format!(
+                    "{} isosurface(s), {} clip box(es), {} clip plane(s)",
+                    last.surfaces.len(),
+                    last.clip_boxes.len(),
+                    last.clip_planes.len()
+                ));
+                ui.horizontal(|ui| {
+                    if ui.button("Reopen").clicked() {
+                        answer = Some(true);
+                    }
+                    if ui.button("Not now").clicked() {
+                        answer = Some(false);
+                    }
+                });
+                ui.horizontal(|ui| {
+                    ui.label("At start:");
+                    for choice in panels::ReopenLast::ALL {
+                        ui.radio_value(&mut self.prefs.reopen_last, choice, choice.label());
+                    }
+                });
+            });
+        match answer {
+            Some(true) => {
+                let last = self.rt.reopen_offer.take().expect("offer shown");
+                self.commands.push(Command::RestoreSession(Box::new(last)));
+            }
+            Some(false) => self.rt.reopen_offer = None,
+            None => {}
+        }
+    }
+
     pub(super) fn windows_ui(&mut self, ctx: &egui::Context) {
         if let Some(dialog) = &mut self.rt.raw_dialog {
             let mut open = true;
@@ -51,6 +99,8 @@ impl ViewerApp {
             }
         }
         self.series_picker_ui(ctx);
+        self.reopen_offer_ui(ctx);
+        self.movie_window_ui(ctx);
         if self.rt.screenshot_window {
             let mut open = true;
             let mut take = false;
@@ -74,6 +124,19 @@ impl ViewerApp {
                             self.prefs.screenshot_path = PathBuf::from(&path);
                         }
                     });
+                    egui::ComboBox::from_label("Anti-aliasing")
+                        .selected_text(panels::supersample_label(
+                            self.prefs.screenshot_supersample,
+                        ))
+                        .show_ui(ui, |ui| {
+                            for k in [1, 2, 3, 4] {
+                                ui.selectable_value(
+                                    &mut self.prefs.screenshot_supersample,
+                                    k,
+                                    panels::supersample_label(k),
+                                );
+                            }
+                        });
                     ui.checkbox(
                         &mut self.prefs.screenshot_replace,
                         "Replace an existing file",
@@ -87,6 +150,7 @@ impl ViewerApp {
                     width,
                     height,
                     replace: self.prefs.screenshot_replace,
+                    supersample: self.prefs.screenshot_supersample,
                 });
                 open = false;
             }

@@ -235,10 +235,12 @@ class Scene:
         clip_planes: Optional[Sequence[_ClipPlane]] = None,
         layers: int = 4,
         background: Optional[_Color] = None,
+        supersample: int = 1,
         level_timeout: float = 120.0,
     ) -> Image:
         """Renders the isosurfaces (default: one at the middle of the value range), as
-        ``isoscope render`` does with the same settings."""
+        ``isoscope render`` does with the same settings; ``supersample=k`` averages k×k
+        rays per pixel (anti-aliasing, 1 to 8)."""
     def first_hit(
         self,
         origins: npt.ArrayLike,
