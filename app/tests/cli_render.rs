@@ -1100,3 +1100,53 @@ fn probe_and_pick_report_values_against_analytic_fields() {
     assert!(e.contains("--pick 64,0") && e.contains("64x48"), "{e}");
     assert_eq!(depth.len(), (w * h) as usize);
 }
+
+/// `--supersample K` averages the K×K rays of each pixel: the image is the box filter of the
+/// same view rendered K times larger (decoded and averaged here), and the depth is the
+/// nearest of each block's hits.
+#[test]
+fn supersampling_is_the_box_filter_of_the_larger_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let (small, big) = (dir.path().join("aa.png"), dir.path().join("big.png"));
+    let (small_depth, big_depth) = (dir.path().join("aa.npy"), dir.path().join("big.npy"));
+    let k = 3u32;
+    let view = ["--iso", "0.5", "--orbit", "20,30"];
+    let mut args = vec!["render", s(&vol), "--size", "31x23", "--supersample", "3"];
+    args.extend(view);
+    args.extend(["-o", s(&small), "--depth-out", s(&small_depth)]);
+    ok(&args);
+    let mut args = vec!["render", s(&vol), "--size", "93x69"];
+    args.extend(view);
+    args.extend(["-o", s(&big), "--depth-out", s(&big_depth)]);
+    ok(&args);
+    let (aa, fine) = (
+        image::open(&small).unwrap().to_rgba8(),
+        image::open(&big).unwrap().to_rgba8(),
+    );
+    let (aa_t, fine_t) = (read_depth(&small_depth), read_depth(&big_depth));
+    assert_eq!(aa.dimensions(), (31, 23));
+    let mut blended = 0;
+    for y in 0..23 {
+        for x in 0..31 {
+            for c in 0..4 {
+                let sum: u32 = (0..k * k)
+                    .map(|s| u32::from(fine.get_pixel(x * k + s % k, y * k + s / k)[c]))
+                    .sum();
+                let want = (sum + k * k / 2) / (k * k);
+                assert_eq!(u32::from(aa.get_pixel(x, y)[c]), want, "pixel {x},{y}");
+            }
+            let nearest = (0..k * k)
+                .map(|s| fine_t[((y * k + s / k) * 93 + x * k + s % k) as usize])
+                .fold(f32::INFINITY, f32::min);
+            assert_eq!(aa_t[(y * 31 + x) as usize], nearest, "depth {x},{y}");
+            let block: Vec<_> = (0..k * k)
+                .map(|s| fine.get_pixel(x * k + s % k, y * k + s / k)[0])
+                .collect();
+            blended += usize::from(block.iter().any(|&v| v != block[0]));
+        }
+    }
+    assert!(blended > 10, "the silhouette is anti-aliased: {blended} mixed pixels");
+    let e = fails(&["render", s(&vol), "--supersample", "9", "-o", s(&dir.path().join("x.png"))]);
+    assert!(e.contains("supersampling 9 must be between 1 and 8"), "{e}");
+}

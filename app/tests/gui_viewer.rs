@@ -115,6 +115,7 @@ impl PreparedScene for RecordingScene {
             width: w,
             height: h,
             rgba8: px.repeat((w * h) as usize),
+            depth: Vec::new(),
             elapsed: (*self.recorder.render_time.lock().unwrap()).max(Duration::from_millis(1)),
             rays: u64::from(w * h),
             lod_level: None,
@@ -977,6 +978,7 @@ fn screenshots_never_replace_an_input_and_replace_files_only_when_asked() {
         width: 32,
         height: 24,
         replace,
+        supersample: 2,
     };
     let seen = h.state().notifications().len();
     h.state_mut().push(shot(&input, true));
@@ -1432,4 +1434,214 @@ fn integer_values_read_as_integers_and_the_data_fills_the_view() {
     let framed = isoscope::ui::camera::framed_view(&app.data().unwrap().bounds, app.viewport_px());
     assert_eq!(app.state.camera, framed);
     assert_ne!(framed.zoom, 1.0);
+}
+
+/// Clicks the viewport at `at` (fractions of its size from the top left).
+fn click_viewport(h: &mut Harness<'_, ViewerApp>, at: [f32; 2]) {
+    let r = h.state().viewport_rect();
+    let pos = r.min + egui::vec2(at[0] * r.width(), at[1] * r.height());
+    h.hover_at(pos);
+    h.run_steps(1);
+    h.drag_at(pos);
+    h.run_steps(1);
+    h.drop_at(pos);
+    h.run_steps(1);
+}
+
+/// The Marschner–Lobb sample clicked in the middle of the view: the pick lies on the surface
+/// (the value there, probed independently of the intersector, is the isovalue), inside the
+/// data, near the analytic function's level set, and the pick section lists it.
+#[test]
+fn a_click_on_the_image_probes_the_surface_there() {
+    use std::f64::consts::PI;
+    let ml = |[x, y, z]: [f64; 3]| {
+        let r = (x * x + y * y).sqrt();
+        let rho = (2.0 * PI * 6.0 * (PI * r / 2.0).cos()).cos();
+        ((1.0 - (PI * z / 2.0).sin()) + 0.25 * (1.0 + rho)) / 2.5
+    };
+    let mut h = real_harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    click_viewport(&mut h, [0.5, 0.45]);
+    step_until(&mut h, "the pick", |a| a.pick().is_some());
+    let app = h.state();
+    let shown = app.pick().unwrap();
+    let pick = shown.pick.expect("the middle of the view shows the surface");
+    let probe = pick.probe.expect("the hit lies in the data");
+    let iso = app.state.surfaces[0].isovalue;
+    assert_eq!(pick.surface, Some(0));
+    assert!((probe.value - iso).abs() < 1e-4, "{} vs iso {iso}", probe.value);
+    assert!(pick.world.iter().all(|c| c.abs() <= 1.0 + 1e-6), "{:?}", pick.world);
+    // Trilinear on 64³ samples of a function of frequency 6: near, not on, its level set.
+    assert!((ml(pick.world) - iso).abs() < 0.1, "{}", ml(pick.world));
+    assert!(shown.text.contains("surface 0"), "{}", shown.text);
+    h.get_by_label("Copy");
+    let line = shown.text.split("; ").find(|l| l.starts_with("value")).unwrap().to_string();
+    h.get_by_label(&line);
+    // A click on the background finds no surface.
+    click_viewport(&mut h, [0.02, 0.02]);
+    step_until(&mut h, "the second pick", |a| {
+        a.pick().is_some_and(|p| p.pick.is_none())
+    });
+    assert!(h.state().pick().unwrap().text.ends_with("no surface"));
+}
+
+/// Ctrl+Z takes back a whole isovalue edit, a clip box and a camera move, one step each;
+/// Ctrl+Shift+Z puts them back.
+#[test]
+fn undo_and_redo_step_through_surface_clip_and_camera_edits() {
+    let (mut h, _rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    h.run_steps(4);
+    let start = h.state().state.clone();
+    assert!(!h.state().can_undo());
+    // An isovalue dragged through several values, then left alone.
+    for v in [0.3, 0.35, 0.4] {
+        h.state_mut().state.surfaces[0].isovalue = v;
+        h.run_steps(1);
+    }
+    h.run_steps(4);
+    h.state_mut().push(Command::AddClipBox);
+    h.run_steps(4);
+    h.state_mut().state.camera.orbit(40.0, 5.0);
+    h.run_steps(4);
+    let end = h.state().state.clone();
+    assert!(h.state().can_undo());
+
+    let undo = |h: &mut Harness<'_, ViewerApp>| {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.run_steps(2);
+    };
+    undo(&mut h);
+    assert_eq!(h.state().state.camera, start.camera);
+    assert_eq!(h.state().state.clip_boxes.len(), 1);
+    undo(&mut h);
+    assert!(h.state().state.clip_boxes.is_empty());
+    assert_eq!(h.state().state.surfaces[0].isovalue, 0.4);
+    undo(&mut h);
+    assert_eq!(h.state().state.surfaces, start.surfaces, "the drag is one step");
+    assert!(!h.state().can_undo());
+    for _ in 0..3 {
+        h.key_press_modifiers(
+            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+            egui::Key::Z,
+        );
+        h.run_steps(2);
+    }
+    assert_eq!(h.state().state.surfaces, end.surfaces);
+    assert_eq!(h.state().state.clip_boxes, end.clip_boxes);
+    assert_eq!(h.state().state.camera, end.camera);
+}
+
+/// A start without files offers the last session (ask), and reopening it restores its
+/// files, surfaces and camera; with "always" it reopens without asking; with files given,
+/// never.
+#[test]
+fn the_last_session_comes_back_at_start() {
+    use isoscope::ui::panels::{Prefs, ReopenLast};
+    let (mut h, _rec) = harness(vec![PathBuf::from("/data/series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some_and(|d| d.name == "series.test"));
+    h.state_mut().state.surfaces[0].isovalue = 6.5;
+    h.state_mut().state.camera.orbit(25.0, -10.0);
+    h.state_mut().push(Command::AddClipBox);
+    h.run_steps(2);
+    h.state_mut().remember_session();
+    let prefs = h.state().prefs.clone();
+    let last = prefs.last_session.clone().expect("a session with files is remembered");
+    assert_eq!(last.files, vec![PathBuf::from("/data/series.test")]);
+
+    let restored = |a: &ViewerApp| {
+        a.data().is_some_and(|d| d.name == "series.test")
+            && a.state.surfaces == last.surfaces
+            && a.state.camera == last.camera
+            && a.state.clip_boxes == last.clip_boxes
+    };
+    let (mut ask, _) = harness(vec![]);
+    ask.state_mut().start_with_prefs(prefs.clone(), false);
+    step_until(&mut ask, "the default sample", |a| a.data().is_some());
+    ask.run_steps(2);
+    ask.get_by_label("Reopen").click();
+    step_until(&mut ask, "the last session", restored);
+
+    let (mut always, _) = harness(vec![]);
+    always.state_mut().start_with_prefs(
+        Prefs {
+            reopen_last: ReopenLast::Always,
+            ..prefs.clone()
+        },
+        false,
+    );
+    step_until(&mut always, "the last session", restored);
+
+    let (mut given, _) = harness(vec![PathBuf::from("/data/series.test")]);
+    given.state_mut().start_with_prefs(prefs, true);
+    step_until(&mut given, "the series", |a| a.data().is_some());
+    given.run_steps(2);
+    assert!(given.query_by_label("Reopen").is_none(), "no offer with files given");
+}
+
+/// File → Movie… plays a series through (one frame per step, the scene's step switched
+/// back afterwards) and orbits (frames of the asked size, the eye turning about the target
+/// at a fixed distance).
+#[test]
+fn movies_write_one_frame_per_step_or_orbit_position() {
+    use isoscope::cli::movie::{Axis, frame_path};
+    use isoscope::ui::movie::MovieSettings;
+    let dir = tempfile::tempdir().unwrap();
+    let (mut h, rec) = harness(vec![PathBuf::from("/data/series.test")]);
+    step_until(&mut h, "the series", |a| a.data().is_some_and(|d| d.name == "series.test"));
+    settle(&mut h);
+    h.state_mut().push(Command::SetStep(2));
+    settle(&mut h);
+    let time = MovieSettings {
+        folder: dir.path().join("time"),
+        time: true,
+        size: [40, 30],
+        ..MovieSettings::default()
+    };
+    let seen = h.state().notifications().len();
+    rec.log.lock().unwrap().steps.clear();
+    h.state_mut().push(Command::Movie(Box::new(time.clone())));
+    let (text, is_error) = wait_note(&mut h, seen, "movie");
+    assert!(!is_error, "{text}");
+    for k in 0..4 {
+        let img = image::open(frame_path(&time.folder, k)).unwrap();
+        assert_eq!((img.width(), img.height()), (40, 30));
+    }
+    assert!(!frame_path(&time.folder, 4).exists());
+    assert_eq!(rec.log.lock().unwrap().steps, vec![0, 1, 2, 3, 2], "back to step 2");
+    settle(&mut h);
+    assert_eq!(h.state().shown_frame().unwrap().request.step, 2);
+
+    let orbit = MovieSettings {
+        folder: dir.path().join("orbit"),
+        frames: 6,
+        degrees: 90.0,
+        axis: Axis::Y,
+        size: [24, 20],
+        ..MovieSettings::default()
+    };
+    let seen = h.state().notifications().len();
+    let before = rec.log.lock().unwrap().requests.len();
+    h.state_mut().push(Command::Movie(Box::new(orbit.clone())));
+    let (text, is_error) = wait_note(&mut h, seen, "movie");
+    assert!(!is_error, "{text}");
+    for k in 0..6 {
+        assert!(frame_path(&orbit.folder, k).exists(), "frame {k}");
+    }
+    let log = rec.log.lock().unwrap();
+    let eyes: Vec<_> = log.requests[before..]
+        .iter()
+        .filter(|r| [r.width, r.height] == [24, 20])
+        .map(|r| (r.camera.eye, r.camera.target))
+        .collect();
+    assert_eq!(eyes.len(), 6);
+    let r0 = eyes[0].0.distance(eyes[0].1);
+    for (k, (eye, target)) in eyes.iter().enumerate() {
+        assert!((eye.distance(*target) - r0).abs() < 1e-3 * r0, "frame {k}");
+        // Turning about y keeps the eye's y.
+        assert!((eye.y - eyes[0].0.y).abs() < 1e-3 * r0, "frame {k}");
+    }
+    let turned = (eyes[5].0 - eyes[5].1).angle_between(eyes[0].0 - eyes[0].1);
+    assert!((turned.to_degrees() - 75.0).abs() < 0.5, "{}", turned.to_degrees());
 }
