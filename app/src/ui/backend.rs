@@ -137,6 +137,21 @@ pub trait PreparedScene: Send + Sync {
     fn lod_status(&self) -> Option<LodStatus> {
         None
     }
+
+    /// Writes the request's visible surfaces, clipped, as a triangle mesh file at `path`
+    /// (replacing an existing one; [`crate::export`]). Call from a job: progress and cancel
+    /// go through `control`.
+    fn export(
+        &self,
+        _request: &RenderRequest,
+        path: &Path,
+        _control: &JobControl,
+    ) -> Result<crate::export::ExportSummary, String> {
+        Err(format!(
+            "{}: this data cannot be exported as a mesh",
+            path.display()
+        ))
+    }
 }
 
 /// What kind of data is shown.

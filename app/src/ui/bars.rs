@@ -42,6 +42,9 @@ impl ViewerApp {
                 if ui.button("Screenshot…").clicked() {
                     self.rt.screenshot_window = true;
                 }
+                if ui.button("Export isosurface…").clicked() {
+                    self.commands.push(Command::PickExportMesh);
+                }
             });
             ui.menu_button("View", |ui| {
                 if ui.button("Reset view").clicked() {

@@ -79,6 +79,11 @@ pub enum Command {
         height: u32,
         replace: bool,
     },
+    /// Opens the file browser to choose where File → Export isosurface… writes.
+    PickExportMesh,
+    /// Writes the visible surfaces (current clips and time step) as a mesh file, replacing
+    /// an existing one (the browser said so).
+    ExportMesh(PathBuf),
     CancelJobs,
 }
 
@@ -196,6 +201,8 @@ impl ViewerApp {
                 height,
                 replace,
             } => self.start_screenshot(path, width, height, replace),
+            Command::PickExportMesh => self.open_browser(BrowsePurpose::ExportMesh),
+            Command::ExportMesh(path) => self.start_export(path),
             Command::CancelJobs => {
                 // Dropping a job raises its cancel flag (the open stops at its next
                 // checkpoint); the data on screen stays. A running step or field switch is
@@ -209,6 +216,7 @@ impl ViewerApp {
                 self.jobs.render.cancel();
                 self.rt.pending_render = None;
                 self.jobs.screenshot.cancel();
+                self.jobs.export.cancel();
                 self.state.time.playing = false;
             }
             Command::RemoveSurface(_) | Command::RemoveClipBox(_) | Command::RemoveClipPlane(_) => {

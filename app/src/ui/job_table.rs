@@ -13,6 +13,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::export::ExportSummary;
+
 use super::backend::{LoadedData, RenderRequest, RenderedImage, StepSwitch, ValueInfo};
 use super::commands::Command;
 use super::jobs::{Job, take_finished};
@@ -98,6 +100,8 @@ pub struct JobTable {
     pub dialog: Slot<(), Option<Command>>,
     /// Rendering and writing a PNG.
     pub screenshot: Slot<(), Result<PathBuf, String>>,
+    /// Extracting the visible surfaces and writing them as a mesh file.
+    pub export: Slot<(), Result<(PathBuf, ExportSummary), String>>,
     pub save_session: Slot<(), Result<PathBuf, String>>,
     pub load_session: Slot<(), Result<ViewerState, String>>,
 }
@@ -128,6 +132,7 @@ pub enum Finished {
     /// A question answered (`None`: nothing to do).
     Picked(Option<Command>),
     ScreenshotSaved(Result<PathBuf, String>),
+    Exported(Result<(PathBuf, ExportSummary), String>),
     SessionSaved(Result<PathBuf, String>),
     SessionLoaded(Result<ViewerState, String>),
 }
@@ -157,6 +162,9 @@ impl JobTable {
         if let Some(((), result)) = self.screenshot.take_finished() {
             return Some(Finished::ScreenshotSaved(result.and_then(|r| r)));
         }
+        if let Some(((), result)) = self.export.take_finished() {
+            return Some(Finished::Exported(result.and_then(|r| r)));
+        }
         if let Some(((), result)) = self.save_session.take_finished() {
             return Some(Finished::SessionSaved(result.and_then(|r| r)));
         }
@@ -173,13 +181,17 @@ impl JobTable {
             || self.field.is_running()
             || self.render.is_running()
             || self.screenshot.is_running()
+            || self.export.is_running()
             || self.save_session.is_running()
             || self.load_session.is_running()
     }
 
     /// True while a job runs that the Cancel button stops.
     pub fn is_cancellable(&self) -> bool {
-        self.load.is_running() || self.prefetch.is_running() || self.screenshot.is_running()
+        self.load.is_running()
+            || self.prefetch.is_running()
+            || self.screenshot.is_running()
+            || self.export.is_running()
     }
 
     /// The status bar's rows: label, progress in [0, 1] and start of every job shown there.
@@ -194,6 +206,7 @@ impl JobTable {
             row(&self.prefetch),
             row(&self.field),
             row(&self.screenshot),
+            row(&self.export),
             row(&self.save_session),
             row(&self.load_session),
         ]
