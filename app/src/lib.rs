@@ -4,6 +4,8 @@
 //!
 //! - [`cli`]: the subcommands (`info`, `generate`, `render`, `bench`, ...), each a module with
 //!   clap `Args` and a `run` function, so tests call them without spawning a process.
+//! - [`export`]: the visible isosurfaces as a PLY, STL or OBJ triangle mesh (CLI, viewer and
+//!   Python share it).
 //! - [`output`]: PNG, `.npy`, report and session outputs through `formats::output` (never
 //!   over an input; atomic; `--force` to replace).
 //! - [`progress`]: indicatif bars that show only for long jobs on a terminal.
@@ -17,6 +19,7 @@
 //!   GUI dependencies (the Python package, `app/python`, builds it so).
 
 pub mod cli;
+pub mod export;
 pub mod output;
 pub mod progress;
 pub mod scene;

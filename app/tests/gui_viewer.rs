@@ -1644,4 +1644,86 @@ fn movies_write_one_frame_per_step_or_orbit_position() {
     }
     let turned = (eyes[5].0 - eyes[5].1).angle_between(eyes[0].0 - eyes[0].1);
     assert!((turned.to_degrees() - 75.0).abs() < 0.5, "{}", turned.to_degrees());
+/// File → Export isosurface… writes, through the in-app browser, the visible surface with
+/// the enabled clip plane at the shown step: the very STL `isoscope export` writes for the
+/// same isovalue and plane (the viewer's plane given to the CLI in world units).
+#[test]
+fn export_isosurface_writes_the_cli_mesh_of_the_shown_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = std::fs::canonicalize(dir.path()).unwrap();
+    let input = folder.join("torus.nrrd");
+    std::fs::copy(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../data-samples/samples/torus32_u8.nrrd"
+        ),
+        &input,
+    )
+    .unwrap();
+    let mut h = real_harness(vec![input.clone()]);
+    step_until(&mut h, "the volume", |a| a.data().is_some());
+    settle(&mut h);
+    h.state_mut().push(Command::AddClipPlane);
+    step_until(&mut h, "the clip plane", |a| a.state.clip_planes.len() == 1);
+    h.state_mut().state.surfaces[0].isovalue = 40.5;
+    h.state_mut().state.clip_planes[0].offset = 0.2;
+    settle(&mut h);
+
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export isosurface…").click();
+    h.run_steps(3);
+    h.get_by_label("Folder").focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label("Folder")
+        .type_text(&folder.display().to_string());
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    h.get_by_label("File name").focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.get_by_label("File name").type_text("viewer.stl");
+    h.run_steps(2);
+    let seen = h.state().notifications().len();
+    h.get_by_label("Export").click();
+    let (text, is_error) = wait_note(&mut h, seen, "isosurface exported");
+    assert!(!is_error, "{text}");
+
+    let settings = isoscope::ui::core_backend::settings(&h.state().desired_request(1).unwrap());
+    let [volume_core::render::ClipRegion::Plane { normal, offset }] = settings.clips[..] else {
+        panic!("one clip plane: {:?}", settings.clips);
+    };
+    let cli = folder.join("cli.stl");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_isoscope"))
+        .args([
+            "export",
+            input.to_str().unwrap(),
+            "--iso",
+            "40.5",
+            "--clip-plane",
+        ])
+        .arg(format!("{},{},{},{offset}", normal.x, normal.y, normal.z))
+        .arg("-o")
+        .arg(&cli)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ours = std::fs::read(folder.join("viewer.stl")).unwrap();
+    let theirs = std::fs::read(&cli).unwrap();
+    let count = |b: &[u8]| u32::from_le_bytes(b[80..84].try_into().unwrap());
+    assert!(count(&theirs) > 0);
+    assert_eq!(count(&ours), count(&theirs));
+    assert_eq!(ours, theirs);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains(&format!("{} triangles", count(&theirs)))
+            && stdout.contains(&format!("{} triangles", count(&theirs))),
+        "{text} / {stdout}"
+    );
 }

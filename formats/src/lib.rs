@@ -21,6 +21,8 @@
 //!   lazily through [`volume_core::series::StepLoader`] (4D NRRD: [`nrrd::NrrdSteps`]).
 //! - [`treelet`]: the `.isot` out-of-core treelet file (4 KiB pages, CRC32 per page) and
 //!   [`treelet::open_isot`] (see `docs/treelet-format.md`).
+//! - [`trimesh`]: triangle mesh writers (binary PLY with normals and colours, binary STL,
+//!   OBJ) for exported isosurfaces.
 //! - [`dicom`]: DICOM series (a folder, a `DICOMDIR`, one file's series, a list of files) as
 //!   volumes in LPS, through dicom-rs, with `--series` picking one of several.
 //! - [`open`]: picks the reader from the name and contents.
@@ -48,6 +50,7 @@ pub mod series;
 mod test_support;
 pub mod tiff;
 pub mod treelet;
+pub mod trimesh;
 pub mod vtk_image;
 
 pub use error::FormatError;

@@ -27,18 +27,22 @@
 //!   and LOD build, loader thread, and the out-of-core scene.
 //! - [`tet`]: tetrahedral meshes (ch. 8): marching-tetrahedra isopolygons, the implicit
 //!   min/max BVH, large-packet traversal, time steps.
+//! - [`extract`]: isosurfaces as triangle meshes for export (marching cubes on grids,
+//!   marching tetrahedra on meshes, clipped exactly); rendering never uses them.
 //! - [`render`]: the [`render::IsoScene`] contract every scene above implements, and the
 //!   renderer on it (camera, clip regions, transparency, shadows, progressive frames).
 //!
 //! Layering inside the crate: `voxel`, `math` → `volume`, `stats`, `series` → `intersect` →
 //! `kdtree` → `grid` → `ooc` (only the accuracy harness, `intersect::accuracy`, reaches up to
-//! trace whole grid scenes); `tet` stands beside `grid`; the scenes implement `render`'s
-//! contract, and `render` knows none of them.
+//! trace whole grid scenes); `tet` stands beside `grid`; `extract` reads volumes, tet scenes
+//! and the clip regions of `render`'s settings, and nothing depends on it; the scenes
+//! implement `render`'s contract, and `render` knows none of them.
 //!
 //! Dependency rule: nothing here knows about files, GUIs, command lines or `anyhow`
 //! (see `docs/architecture.md`).
 
 pub mod error;
+pub mod extract;
 pub mod grid;
 pub mod intersect;
 pub mod kdtree;

@@ -411,6 +411,56 @@ impl Scene {
         Ok(Image { frame })
     }
 
+    /// Writes the isosurfaces at the current time step, clipped, as a triangle mesh (PLY,
+    /// STL or OBJ by `path`'s extension), as `isoscope export` does; returns the counts and
+    /// area as a dict.
+    #[pyo3(signature = (path, isovalues=None, *, clip_boxes=None, clip_planes=None, normals=false, force=false))]
+    fn export<'py>(
+        &self,
+        py: Python<'py>,
+        path: std::path::PathBuf,
+        isovalues: Option<Vec<Bound<'_, PyAny>>>,
+        clip_boxes: Option<Vec<Bound<'_, PyAny>>>,
+        clip_planes: Option<Vec<Bound<'_, PyAny>>>,
+        normals: bool,
+        force: bool,
+    ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        let specs = isovalues
+            .unwrap_or_default()
+            .iter()
+            .map(iso_spec)
+            .collect::<PyResult<Vec<_>>>()?;
+        let surfaces = surfaces_for(&specs, &self.loaded.read()).py_err()?;
+        let mut clips = Vec::new();
+        for c in clip_boxes.unwrap_or_default() {
+            clips.push(clip(&c, parse_clip_box, "clip_boxes")?);
+        }
+        for c in clip_planes.unwrap_or_default() {
+            clips.push(clip(&c, parse_clip_plane, "clip_planes")?);
+        }
+        let cancel = AtomicBool::new(false);
+        let summary = self
+            .with_scene(py, &cancel, |scene| {
+                isoscope::export::export_mesh(
+                    scene,
+                    &surfaces,
+                    &clips,
+                    &path,
+                    normals,
+                    formats::output::Replace::from_force(force),
+                    &cancel,
+                    &|_| {},
+                )
+            })?
+            .py_err()?;
+        let out = pyo3::types::PyDict::new(py);
+        out.set_item("format", summary.format.name().to_ascii_lowercase())?;
+        out.set_item("vertices", summary.vertices)?;
+        out.set_item("triangles", summary.triangles)?;
+        out.set_item("area", summary.area)?;
+        Ok(out)
+    }
+
     /// First hits of N rays (`origins`, `directions`: N×3, world units; directions need not
     /// be unit length) with the surfaces `isovalues`. Returns `(t, normal, surface)`: `t`
     /// (N, float32) is the distance along the normalized direction, `inf` on a miss;

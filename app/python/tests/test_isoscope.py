@@ -429,3 +429,27 @@ def test_ctrl_c_cancels_a_long_render(tmp_path):
     out, _ = p.communicate(timeout=60)
     assert out.startswith("interrupted"), out
     assert float(out.split()[1]) < 20
+
+
+# --- export: the same mesh file as the CLI ------------------------------------------------
+
+
+def test_export_writes_the_cli_mesh_at_the_current_step(cli, tmp_path):
+    pattern = SAMPLES / "blobs24_%03d.nrrd"
+    scene = isoscope.Scene(isoscope.open(pattern))
+    scene.step = 2
+    ours = tmp_path / "py.ply"
+    summary = scene.export(ours, [(0.5, "#ff8000")], clip_planes=[(1, 0, 0, 0.2)])
+    theirs = tmp_path / "cli.ply"
+    r = cli("export", pattern, "--step", "2", "--iso", "0.5:#ff8000", "--clip-plane", "1,0,0,0.2", "-o", theirs)
+    assert r.returncode == 0, r.stderr
+    assert ours.read_bytes() == theirs.read_bytes()
+    assert summary["format"] == "ply" and summary["triangles"] > 0
+    assert f"{summary['vertices']} vertices, {summary['triangles']} triangles" in r.stdout
+    # The triangle count is in the PLY header; an existing file needs force=True.
+    assert f"element face {summary['triangles']}".encode() in ours.read_bytes()[:400]
+    with pytest.raises(FileExistsError, match="already exists"):
+        scene.export(ours, [0.5])
+    assert scene.export(ours, [0.5], force=True)["triangles"] != summary["triangles"]
+    with pytest.raises(ValueError, match=r"\.ply"):
+        scene.export(tmp_path / "x.vrml", [0.5])

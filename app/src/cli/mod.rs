@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 pub mod accuracy;
 pub mod bench;
 pub mod convert;
+pub mod export;
 pub mod generate;
 pub mod info;
 pub mod movie;
@@ -49,6 +50,9 @@ pub enum Command {
     /// Convert a volume (NRRD, NIfTI, Analyze, raw, series) to NRRD (.nrrd/.nhdr) or NIfTI
     /// (.nii/.nii.gz), keeping its geometry and world frame.
     Convert(convert::Args),
+    /// Write the isosurfaces as a triangle mesh (PLY, STL or OBJ) for 3D printing and other
+    /// tools: marching cubes on volumes, marching tetrahedra on meshes, clipped exactly.
+    Export(export::Args),
 }
 
 /// An error and its causes on one line, `top: cause: cause`, leaving out a cause whose text
@@ -81,6 +85,7 @@ pub fn run(command: Command) -> anyhow::Result<()> {
         Command::Accuracy(a) => accuracy::run(&a),
         Command::Preprocess(a) => preprocess::run(&a),
         Command::Convert(a) => convert::run(&a),
+        Command::Export(a) => export::run(&a),
     }
 }
 

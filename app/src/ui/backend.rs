@@ -153,6 +153,21 @@ pub trait PreparedScene: Send + Sync {
     ) -> Result<Option<crate::scene::Pick>, String> {
         Err("this data cannot be probed".to_string())
     }
+
+    /// Writes the request's visible surfaces, clipped, as a triangle mesh file at `path`
+    /// (replacing an existing one; [`crate::export`]). Call from a job: progress and cancel
+    /// go through `control`.
+    fn export(
+        &self,
+        _request: &RenderRequest,
+        path: &Path,
+        _control: &JobControl,
+    ) -> Result<crate::export::ExportSummary, String> {
+        Err(format!(
+            "{}: this data cannot be exported as a mesh",
+            path.display()
+        ))
+    }
 }
 
 /// What kind of data is shown.

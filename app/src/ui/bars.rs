@@ -58,6 +58,9 @@ impl ViewerApp {
                 if ui.button("Movie…").clicked() {
                     self.rt.movie_window = true;
                 }
+                if ui.button("Export isosurface…").clicked() {
+                    self.commands.push(Command::PickExportMesh);
+                }
             });
             ui.menu_button("Edit", |ui| {
                 let can_undo = self.rt.history.can_undo(&self.state);

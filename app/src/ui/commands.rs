@@ -81,6 +81,11 @@ pub enum Command {
         replace: bool,
         supersample: u32,
     },
+    /// Opens the file browser to choose where File → Export isosurface… writes.
+    PickExportMesh,
+    /// Writes the visible surfaces (current clips and time step) as a mesh file, replacing
+    /// an existing one (the browser said so).
+    ExportMesh(PathBuf),
     CancelJobs,
     /// Records a movie (File → Movie…).
     Movie(Box<super::movie::MovieSettings>),
@@ -206,6 +211,8 @@ impl ViewerApp {
                 replace,
                 supersample,
             } => self.start_screenshot(path, [width, height], replace, supersample),
+            Command::PickExportMesh => self.open_browser(BrowsePurpose::ExportMesh),
+            Command::ExportMesh(path) => self.start_export(path),
             Command::CancelJobs => {
                 // Dropping a job raises its cancel flag (the open stops at its next
                 // checkpoint); the data on screen stays. A running step or field switch is
@@ -220,6 +227,7 @@ impl ViewerApp {
                 self.rt.pending_render = None;
                 self.jobs.screenshot.cancel();
                 self.jobs.movie.cancel();
+                self.jobs.export.cancel();
                 self.state.time.playing = false;
             }
             Command::Movie(settings) => self.start_movie(*settings),

@@ -278,6 +278,34 @@ impl PreparedScene for CorePrepared {
             .ok_or_else(|| format!("point array \"{name}\" has no finite values"))
     }
 
+    fn export(
+        &self,
+        request: &RenderRequest,
+        path: &Path,
+        control: &JobControl,
+    ) -> Result<crate::export::ExportSummary, String> {
+        let settings = settings(request);
+        let scene = self.scene.read().map_err(poisoned)?;
+        if scene.step() != request.step {
+            return Err(format!(
+                "the scene holds time step {}, not {}",
+                scene.step(),
+                request.step
+            ));
+        }
+        crate::export::export_mesh(
+            &scene,
+            &settings.surfaces,
+            &settings.clips,
+            path,
+            true,
+            formats::output::Replace::Allow,
+            control.cancel_flag(),
+            &|f| control.set_progress(f),
+        )
+        .map_err(|e| crate::cli::error_text(&e))
+    }
+
     fn value_info(&self) -> Option<ValueInfo> {
         self.scene.read().ok()?.data().value_info(HISTOGRAM_BINS)
     }

@@ -26,6 +26,8 @@ pub enum BrowsePurpose {
     OpenFolder,
     OpenSession,
     SaveSession,
+    /// Where File → Export isosurface… writes its mesh (PLY, STL or OBJ).
+    ExportMesh,
 }
 
 impl BrowsePurpose {
@@ -35,6 +37,7 @@ impl BrowsePurpose {
             Self::OpenFolder => "Open a folder (DICOM series)",
             Self::OpenSession => "Open session",
             Self::SaveSession => "Save session",
+            Self::ExportMesh => "Export isosurface",
         }
     }
 
@@ -43,6 +46,7 @@ impl BrowsePurpose {
             Self::OpenData | Self::OpenSession => "Open",
             Self::OpenFolder => "Open folder",
             Self::SaveSession => "Save",
+            Self::ExportMesh => "Export",
         }
     }
 
@@ -55,9 +59,22 @@ impl BrowsePurpose {
                         .extension()
                         .is_some_and(|e| e.eq_ignore_ascii_case("json"))
             }
+            Self::ExportMesh => {
+                entry.is_folder
+                    || Path::new(&entry.name).extension().is_some_and(|e| {
+                        ["ply", "stl", "obj"]
+                            .iter()
+                            .any(|x| e.eq_ignore_ascii_case(x))
+                    })
+            }
             Self::OpenFolder => entry.is_folder,
             Self::OpenData => true,
         }
+    }
+
+    /// Whether the browser names a file to write (a **File name** field) rather than picks.
+    fn saves(self) -> bool {
+        matches!(self, Self::SaveSession | Self::ExportMesh)
     }
 }
 
@@ -132,10 +149,10 @@ impl FileBrowser {
             entries: Vec::new(),
             truncated: false,
             selected: Vec::new(),
-            file_name: if purpose == BrowsePurpose::SaveSession {
-                "session.json".to_string()
-            } else {
-                String::new()
+            file_name: match purpose {
+                BrowsePurpose::SaveSession => "session.json".to_string(),
+                BrowsePurpose::ExportMesh => "isosurface.ply".to_string(),
+                _ => String::new(),
             },
             show_hidden: false,
             error: None,
@@ -190,18 +207,23 @@ impl FileBrowser {
                     .unwrap_or_else(|| self.folder.clone()),
             ])),
             BrowsePurpose::OpenSession => picked.into_iter().next().map(Command::LoadSession),
-            BrowsePurpose::SaveSession => {
-                let name = self.file_name.trim();
-                if name.is_empty() {
-                    return None;
-                }
-                let mut path = self.folder.join(name);
-                if path.extension().is_none() {
-                    path.set_extension("json");
-                }
-                Some(Command::SaveSession(path))
-            }
+            BrowsePurpose::SaveSession => self.save_path("json").map(Command::SaveSession),
+            BrowsePurpose::ExportMesh => self.save_path("ply").map(Command::ExportMesh),
         }
+    }
+
+    /// The file the **File name** field names in the folder, with `extension` when it has
+    /// none (`None` while the field is empty).
+    fn save_path(&self, extension: &str) -> Option<PathBuf> {
+        let name = self.file_name.trim();
+        if name.is_empty() {
+            return None;
+        }
+        let mut path = self.folder.join(name);
+        if path.extension().is_none() {
+            path.set_extension(extension);
+        }
+        Some(path)
     }
 
     /// Draws the browser window for one frame.
@@ -270,7 +292,7 @@ impl FileBrowser {
                         } else {
                             self.selected.push(entry.name.clone());
                         }
-                        if self.purpose == BrowsePurpose::SaveSession && !entry.is_folder {
+                        if self.purpose.saves() && !entry.is_folder {
                             self.file_name.clone_from(&entry.name);
                         }
                     }
@@ -279,19 +301,20 @@ impl FileBrowser {
         if self.truncated {
             ui.label(format!("only the first {MAX_ENTRIES} names are listed"));
         }
-        if self.purpose == BrowsePurpose::SaveSession {
+        if self.purpose.saves() {
             ui.horizontal(|ui| {
                 let l = ui.label("File name");
                 ui.text_edit_singleline(&mut self.file_name)
                     .labelled_by(l.id);
             });
         }
-        if let Some(Command::SaveSession(path)) = self.command()
+        if let Some(Command::SaveSession(path) | Command::ExportMesh(path)) = self.command()
             && path.exists()
         {
             ui.label(format!(
-                "{} exists: Save replaces it",
-                path.file_name().unwrap_or_default().to_string_lossy()
+                "{} exists: {} replaces it",
+                path.file_name().unwrap_or_default().to_string_lossy(),
+                self.purpose.action()
             ));
         }
         ui.horizontal(|ui| {
@@ -322,7 +345,7 @@ impl FileBrowser {
                 go_to = Some(path);
             } else {
                 self.selected = vec![entry.name.clone()];
-                if self.purpose == BrowsePurpose::SaveSession {
+                if self.purpose.saves() {
                     self.file_name = entry.name;
                 }
                 if let Some(c) = self.command() {
@@ -339,7 +362,7 @@ impl FileBrowser {
                     && let Some(name) = name
                 {
                     self.selected = vec![name.clone()];
-                    if self.purpose == BrowsePurpose::SaveSession {
+                    if self.purpose.saves() {
                         self.file_name = name;
                     }
                     if let Some(c) = self.command() {
@@ -408,6 +431,37 @@ mod tests {
             .map(|e| e.name.as_str())
             .collect();
         assert_eq!(listed, ["s.json"]);
+    }
+
+    #[test]
+    fn an_exported_mesh_gets_the_ply_extension_and_meshes_are_listed() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["a.ply", "b.STL", "c.obj", "ct.nrrd"] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        let mut b = FileBrowser::new(BrowsePurpose::ExportMesh, Some(dir.path().into()));
+        let folder = std::fs::canonicalize(dir.path()).unwrap();
+        assert_eq!(
+            b.command(),
+            Some(Command::ExportMesh(folder.join("isosurface.ply")))
+        );
+        b.file_name = "bone".into();
+        assert_eq!(
+            b.command(),
+            Some(Command::ExportMesh(folder.join("bone.ply")))
+        );
+        b.file_name = "bone.stl".into();
+        assert_eq!(
+            b.command(),
+            Some(Command::ExportMesh(folder.join("bone.stl")))
+        );
+        let listed: Vec<&str> = b
+            .entries
+            .iter()
+            .filter(|e| b.purpose.lists(e))
+            .map(|e| e.name.as_str())
+            .collect();
+        assert_eq!(listed, ["a.ply", "b.STL", "c.obj"]);
     }
 
     #[test]

@@ -13,6 +13,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::export::ExportSummary;
+
 use super::backend::{LoadedData, RenderRequest, RenderedImage, StepSwitch, ValueInfo};
 use super::commands::Command;
 use super::jobs::{Job, take_finished};
@@ -99,6 +101,8 @@ pub struct JobTable {
     pub dialog: Slot<(), Option<Command>>,
     /// Rendering and writing a PNG.
     pub screenshot: Slot<(), Result<PathBuf, String>>,
+    /// Extracting the visible surfaces and writing them as a mesh file.
+    pub export: Slot<(), Result<(PathBuf, ExportSummary), String>>,
     pub save_session: Slot<(), Result<PathBuf, String>>,
     pub load_session: Slot<(), Result<ViewerState, String>>,
     /// Rendering and writing a movie's frames; the meta is true when it plays the time
@@ -134,6 +138,7 @@ pub enum Finished {
     /// A question answered (`None`: nothing to do).
     Picked(Option<Command>),
     ScreenshotSaved(Result<PathBuf, String>),
+    Exported(Result<(PathBuf, ExportSummary), String>),
     SessionSaved(Result<PathBuf, String>),
     SessionLoaded(Result<ViewerState, String>),
     Probed(Result<PickShown, String>),
@@ -165,6 +170,9 @@ impl JobTable {
         if let Some(((), result)) = self.screenshot.take_finished() {
             return Some(Finished::ScreenshotSaved(result.and_then(|r| r)));
         }
+        if let Some(((), result)) = self.export.take_finished() {
+            return Some(Finished::Exported(result.and_then(|r| r)));
+        }
         if let Some(((), result)) = self.save_session.take_finished() {
             return Some(Finished::SessionSaved(result.and_then(|r| r)));
         }
@@ -188,6 +196,7 @@ impl JobTable {
             || self.render.is_running()
             || self.screenshot.is_running()
             || self.movie.is_running()
+            || self.export.is_running()
             || self.save_session.is_running()
             || self.load_session.is_running()
     }
@@ -198,6 +207,7 @@ impl JobTable {
             || self.prefetch.is_running()
             || self.screenshot.is_running()
             || self.movie.is_running()
+            || self.export.is_running()
     }
 
     /// The status bar's rows: label, progress in [0, 1] and start of every job shown there.
@@ -213,6 +223,7 @@ impl JobTable {
             row(&self.field),
             row(&self.screenshot),
             row(&self.movie),
+            row(&self.export),
             row(&self.save_session),
             row(&self.load_session),
         ]

@@ -124,6 +124,15 @@ impl ViewerApp {
                 Ok(p) => self.notify(format!("screenshot saved to {}", p.display()), false),
                 Err(e) => self.notify(format!("screenshot: {e}"), true),
             },
+            Finished::Exported(result) => match result {
+                Ok((p, summary)) => {
+                    self.notify(
+                        format!("isosurface exported to {}: {summary}", p.display()),
+                        false,
+                    );
+                }
+                Err(e) => self.notify(format!("export: {e}"), true),
+            },
             Finished::SessionSaved(result) => match result {
                 Ok(p) => self.notify(format!("session saved to {}", p.display()), false),
                 Err(e) => self.notify(e, true),
@@ -450,6 +459,29 @@ impl ViewerApp {
             })
         });
         self.jobs.pick.start((), job);
+    /// Writes the visible surfaces with the current clips and time step as a mesh file
+    /// (PLY, STL or OBJ by `path`'s extension) in a job with progress and cancel.
+    pub(super) fn start_export(&mut self, path: PathBuf) {
+        let Some(req) = self.desired_request(1) else {
+            self.notify("export: nothing to export yet", true);
+            return;
+        };
+        if !self.scene_ready() {
+            self.notify("export: the scene is still being prepared", true);
+            return;
+        }
+        let Some(scene) = self.rt.data.as_ref().map(|d| Arc::clone(&d.scene)) else {
+            return;
+        };
+        let job = Job::spawn(
+            "exporting the isosurface",
+            self.repaint_fn(),
+            move |control| {
+                let summary = scene.export(&req, &path, control)?;
+                Ok((path, summary))
+            },
+        );
+        self.jobs.export.start((), job);
     }
 
     // ---- what the state asks for --------------------------------------------------------

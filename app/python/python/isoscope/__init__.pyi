@@ -241,6 +241,20 @@ class Scene:
         """Renders the isosurfaces (default: one at the middle of the value range), as
         ``isoscope render`` does with the same settings; ``supersample=k`` averages k×k
         rays per pixel (anti-aliasing, 1 to 8)."""
+    def export(
+        self,
+        path: _Path,
+        isovalues: Optional[Sequence[_IsoSpec]] = None,
+        *,
+        clip_boxes: Optional[Sequence[_ClipBox]] = None,
+        clip_planes: Optional[Sequence[_ClipPlane]] = None,
+        normals: bool = False,
+        force: bool = False,
+    ) -> Dict[str, Union[str, int, float]]:
+        """Writes the isosurfaces at the current time step, clipped, as one triangle mesh
+        (``.ply`` with vertex colours, ``.stl`` or ``.obj``), as ``isoscope export`` does.
+        Returns ``{"format", "vertices", "triangles", "area"}``. An existing file is
+        replaced only with ``force=True``; an input file never is."""
     def first_hit(
         self,
         origins: npt.ArrayLike,
