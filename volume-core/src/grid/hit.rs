@@ -84,5 +84,6 @@ pub fn make_hit<T: Voxel>(
         t: h.t,
         surface: h.surface,
         normal,
+        cell: 0,
     }
 }

@@ -10,15 +10,19 @@
 //!   ([`crate::ooc`]): world ray to traversal units, a [`CellTrace`]'s cell hit, and
 //!   [`make_hit`], the world-space [`crate::render::Hit`] with its normal.
 //! - [`normals`]: shading normals from central differences (§6.4).
+//! - [`sample`]: values and gradient magnitudes at hit positions, for surfaces coloured by
+//!   another field.
 //!
-//! Dependencies run one way: `scene` → `dda` → `hit` → `normals`.
+//! Dependencies run one way: `scene` → `dda` → `hit` → `normals`; `sample` → `normals`.
 
 pub mod dda;
 pub mod hit;
 pub mod normals;
+pub mod sample;
 pub mod scene;
 
 pub use dda::DdaScene;
 pub use hit::{CellBlock, CellTrace, make_hit};
 pub use normals::normal_at;
+pub use sample::{GridField, GridQuantity, VolumeSampler, gradient_magnitude_range};
 pub use scene::{AnyGridScene, GridScene, StepSwitch};

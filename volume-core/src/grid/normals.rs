@@ -7,6 +7,9 @@
 //! and the per-axis spacing. If that gradient vanishes, the analytic gradient of the cell's
 //! trilinear interpolant is used; if that vanishes too (a constant cell), the normal faces
 //! the ray. Normals are never NaN and point towards increasing values.
+//!
+//! The same central-difference gradient, unnormalised ([`gradient_local_at`]), is what a
+//! surface coloured by gradient magnitude shows ([`super::sample`]).
 
 use glam::{DVec3, Vec3};
 
@@ -21,19 +24,37 @@ pub fn normal_at<T: Voxel>(
     cell: [usize; 3],
     uvw: Vec3,
 ) -> Option<Vec3> {
-    if let Some(n) = normal_interior_f32(frame, voxels, dims, cell, uvw) {
-        return Some(n);
+    if let Some(g) = gradient_interior_f32(frame, voxels, dims, cell, uvw) {
+        return frame.world_normal(g.as_dvec3());
     }
     normal_general(frame, voxels, dims, cell, uvw)
 }
 
-/// The common case of [`normal_at`] in `f32` with straight-line loads: a cell at least one
+/// The central-difference gradient at cell-local position `uvw` of `cell`, in stored
+/// value per traversal unit (map it to world units with
+/// [`TraversalFrame::world_gradient`]): the gradient [`normal_at`] normalises, without its
+/// fallback for a vanishing gradient (zero stays zero). Components without a finite
+/// difference (void neighbours on both sides) are 0.
+pub fn gradient_local_at<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> DVec3 {
+    if let Some(g) = gradient_interior_f32(frame, voxels, dims, cell, uvw) {
+        return g.as_dvec3();
+    }
+    central_differences(frame, voxels, dims, cell, uvw).0
+}
+
+/// The common case of the gradient in `f32` with straight-line loads: a cell at least one
 /// sample away from every border, a voxel type `f32` holds well (not 32-bit integers or
 /// `f64`), and a finite, nonzero result. Every corner then takes the central difference,
-/// exactly as in [`normal_general`]; anything else (borders, void or huge values, a
+/// exactly as in [`central_differences`]; anything else (borders, void or huge values, a
 /// vanishing gradient) returns `None` and takes the general path.
 #[inline]
-fn normal_interior_f32<T: Voxel>(
+fn gradient_interior_f32<T: Voxel>(
     frame: &TraversalFrame,
     voxels: &[T],
     dims: [usize; 3],
@@ -99,7 +120,7 @@ fn normal_interior_f32<T: Voxel>(
     if !grad.is_finite() || grad == Vec3::ZERO {
         return None;
     }
-    frame.world_normal(grad.as_dvec3())
+    Some(grad)
 }
 
 /// [`normal_at`] for every case, in `f64` (see the module docs).
@@ -110,54 +131,14 @@ fn normal_general<T: Voxel>(
     cell: [usize; 3],
     uvw: Vec3,
 ) -> Option<Vec3> {
-    let value =
-        |i: usize, j: usize, k: usize| -> f64 { voxels[i + dims[0] * (j + dims[1] * k)].to_f64() };
-    let uvw = uvw.as_dvec3();
-    let mut grad = DVec3::ZERO;
-    let mut corner_vals = [0.0f64; 8];
-    for (c, corner_val) in corner_vals.iter_mut().enumerate() {
-        let v = [
-            cell[0] + (c & 1),
-            cell[1] + ((c >> 1) & 1),
-            cell[2] + ((c >> 2) & 1),
-        ];
-        let f0 = value(v[0], v[1], v[2]);
-        *corner_val = f0;
-        let mut g = DVec3::ZERO;
-        for a in 0..3 {
-            let sample = |idx: usize| {
-                let mut w = v;
-                w[a] = idx;
-                let f = value(w[0], w[1], w[2]);
-                f.is_finite().then_some((f, f64::from(frame.pos[a][idx])))
-            };
-            let minus = if v[a] > 0 { sample(v[a] - 1) } else { None };
-            let plus = if v[a] + 1 < dims[a] {
-                sample(v[a] + 1)
-            } else {
-                None
-            };
-            let here = f0
-                .is_finite()
-                .then_some((f0, f64::from(frame.pos[a][v[a]])));
-            g[a] = match (minus, here, plus) {
-                (Some((fm, xm)), _, Some((fp, xp))) => (fp - fm) / (xp - xm),
-                (Some((fm, xm)), Some((fh, xh)), None) => (fh - fm) / (xh - xm),
-                (None, Some((fh, xh)), Some((fp, xp))) => (fp - fh) / (xp - xh),
-                _ => 0.0,
-            };
-        }
-        let w = (if c & 1 == 1 { uvw.x } else { 1.0 - uvw.x })
-            * (if c & 2 == 2 { uvw.y } else { 1.0 - uvw.y })
-            * (if c & 4 == 4 { uvw.z } else { 1.0 - uvw.z });
-        grad += g * w;
-    }
+    let (grad, corner_vals) = central_differences(frame, voxels, dims, cell, uvw);
     if grad.is_finite()
         && let Some(n) = frame.world_normal(grad)
     {
         return Some(n);
     }
     // The analytic gradient of the cell's trilinear interpolant.
+    let uvw = uvw.as_dvec3();
     let (lo, hi) = frame.cell_box(cell);
     let width = (hi - lo).as_dvec3();
     let mut g = DVec3::ZERO;
@@ -178,4 +159,72 @@ fn normal_general<T: Voxel>(
     } else {
         None
     }
+}
+
+/// Central differences (one-sided at the border or next to a void sample) at the 8 corners
+/// of `cell`, trilinearly blended at `uvw`, in `f64` (traversal units), and the corner
+/// values.
+fn central_differences<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    uvw: Vec3,
+) -> (DVec3, [f64; 8]) {
+    let uvw = uvw.as_dvec3();
+    let mut grad = DVec3::ZERO;
+    let mut corner_vals = [0.0f64; 8];
+    for (c, corner_val) in corner_vals.iter_mut().enumerate() {
+        let v = [
+            cell[0] + (c & 1),
+            cell[1] + ((c >> 1) & 1),
+            cell[2] + ((c >> 2) & 1),
+        ];
+        let (f0, g) = sample_gradient_local(frame, voxels, dims, v);
+        *corner_val = f0;
+        let w = (if c & 1 == 1 { uvw.x } else { 1.0 - uvw.x })
+            * (if c & 2 == 2 { uvw.y } else { 1.0 - uvw.y })
+            * (if c & 4 == 4 { uvw.z } else { 1.0 - uvw.z });
+        grad += g * w;
+    }
+    (grad, corner_vals)
+}
+
+/// The stored value at sample `v` and its central-difference gradient (one-sided at the
+/// border or next to a void sample, 0 along an axis without a finite difference), in
+/// traversal units: the corner gradients the trilinear blend of [`gradient_local_at`] mixes.
+pub fn sample_gradient_local<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    v: [usize; 3],
+) -> (f64, DVec3) {
+    let value =
+        |i: usize, j: usize, k: usize| -> f64 { voxels[i + dims[0] * (j + dims[1] * k)].to_f64() };
+    let f0 = value(v[0], v[1], v[2]);
+    let mut g = DVec3::ZERO;
+    for a in 0..3 {
+        let sample = |idx: usize| {
+            let mut w = v;
+            w[a] = idx;
+            let f = value(w[0], w[1], w[2]);
+            f.is_finite().then_some((f, f64::from(frame.pos[a][idx])))
+        };
+        let minus = if v[a] > 0 { sample(v[a] - 1) } else { None };
+        let plus = if v[a] + 1 < dims[a] {
+            sample(v[a] + 1)
+        } else {
+            None
+        };
+        let here = f0
+            .is_finite()
+            .then_some((f0, f64::from(frame.pos[a][v[a]])));
+        g[a] = match (minus, here, plus) {
+            (Some((fm, xm)), _, Some((fp, xp))) => (fp - fm) / (xp - xm),
+            (Some((fm, xm)), Some((fh, xh)), None) => (fh - fm) / (xh - xm),
+            (None, Some((fh, xh)), Some((fp, xp))) => (fp - fh) / (xp - xh),
+            _ => 0.0,
+        };
+    }
+    (f0, g)
 }

@@ -17,13 +17,14 @@ use glam::Vec3;
 
 use super::dda::DdaScene;
 use super::hit::{CellBlock, CellTrace, first_hit_with, make_hit};
+use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
 use crate::kdtree::{
     KdTree, KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack,
 };
 use crate::math::{Aabb, Ray};
-use crate::render::{Hit, IsoScene, SceneVisitor, Stats};
+use crate::render::{Hit, HitField, IsoScene, SceneVisitor, Stats};
 use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
 use crate::voxel::Voxel;
 
@@ -288,6 +289,18 @@ impl<T: Voxel> GridScene<T> {
         }
     }
 
+    /// The gradient magnitude of this scene's field at hit positions (colouring).
+    pub fn gradient_field(&self) -> GridField<'_, T> {
+        GridField::new(
+            &self.frame,
+            self.voxels.as_slice(),
+            self.dims,
+            self.value_map,
+            GridQuantity::GradientMagnitude,
+        )
+        .expect("the scene's voxels match its grid")
+    }
+
     /// The grid as the block every hit lies in.
     fn block(&self) -> CellBlock<'_, T> {
         CellBlock {
@@ -457,6 +470,20 @@ impl AnyGridScene {
             *self = Self::new(volume, self.intersector());
             StepSwitch::Rebuild
         }
+    }
+
+    /// The gradient magnitude of the scene's field at hit positions, for colouring
+    /// ([`GridScene::gradient_field`]).
+    pub fn gradient_field(&self) -> Box<dyn HitField + '_> {
+        dispatch_grid_scene!(self, s => Box::new(s.gradient_field()) as Box<dyn HitField + '_>)
+    }
+
+    /// The range of the gradient magnitude over the samples (scans every voxel, in
+    /// parallel); `None` without a finite one.
+    pub fn gradient_magnitude_range(&self) -> Option<(f64, f64)> {
+        dispatch_grid_scene!(self, s => gradient_magnitude_range(
+            &s.frame, s.voxels.as_slice(), s.dims, s.value_map
+        ))
     }
 
     /// Hands the typed kd-tree scene to `visitor` (monomorphized traversal).

@@ -181,6 +181,11 @@ impl TraversalFrame {
         )
     }
 
+    /// A gradient in traversal units as a world-space gradient (value per world unit).
+    pub fn world_gradient(&self, grad_local: DVec3) -> DVec3 {
+        self.world_gradient_from_local * grad_local
+    }
+
     /// World-space unit normal from a gradient in traversal units, or `None` if it is zero
     /// or not finite.
     pub fn world_normal(&self, grad_local: DVec3) -> Option<Vec3> {

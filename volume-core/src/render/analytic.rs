@@ -97,6 +97,7 @@ impl SphereScene {
                         t: tf,
                         surface: s as u32,
                         normal: ((p - c) / radius).as_vec3(),
+                        cell: k as u32,
                     });
                 }
             }

@@ -6,6 +6,8 @@
 //! - [`settings`]: [`Surface`]s (isovalue, colour, opacity), [`ClipRegion`]s, the [`Light`]
 //!   and [`RenderSettings`].
 //! - [`clip`]: the kept parameter intervals of a ray under any number of clip regions.
+//! - [`colormap`]: viridis, magma, coolwarm and grey, for surfaces coloured by another field
+//!   ([`ColorBy`]; the field is sampled at each shaded hit through a [`HitField`]).
 //! - [`renderer`]: [`render`] / [`render_into`] (reuses the frame's buffers) — tiles over rayon, primary packets, transparency by depth
 //!   peeling, shadow rays, progressive scale, cancellation — producing a [`Frame`]
 //!   (RGBA8 + first-hit depth + statistics).
@@ -18,6 +20,7 @@
 pub mod analytic;
 pub mod camera;
 pub mod clip;
+pub mod colormap;
 pub mod renderer;
 pub mod scene;
 pub mod settings;
@@ -25,8 +28,14 @@ mod shade;
 pub mod supersample;
 
 pub use camera::{Camera, CameraError, Projection, RayGen};
-pub use renderer::{Frame, RayCounts, TILE, render, render_into};
-pub use scene::{CountStats, Hit, IsoScene, NoStats, SceneVisitor, Stats, TraversalCounts};
+pub use colormap::Colormap;
+pub use renderer::{
+    Frame, RayCounts, SurfaceColoring, TILE, render, render_colored_into, render_into,
+};
+pub use scene::{
+    CountStats, Hit, HitField, IsoScene, NoStats, SceneVisitor, Stats, TraversalCounts,
+};
 pub use settings::{
-    ClipRegion, Keep, Light, LightKind, MAX_IMAGE_SIDE, RenderSettings, SettingsError, Surface,
+    ClipRegion, ColorBy, ColorField, Keep, Light, LightKind, MAX_IMAGE_SIDE, RenderSettings,
+    SettingsError, Surface,
 };

@@ -27,6 +27,11 @@
 //! light's direction, or aim at one point light: coherent), then the hits are shaded. The
 //! isovalues are prepared once per call ([`IsoScene::prepare`]).
 //!
+//! Colouring by another field ([`render_colored_into`]): a surface with a
+//! [`SurfaceColoring`] takes its base colour from the colormap of a [`HitField`] sampled at
+//! the hit, once per shaded hit, before lighting; without one it costs one branch per
+//! shaded hit and nothing during traversal.
+//!
 //! Statistics and shadows are compile-time parameters, so when they are off their code is not
 //! in the loop at all. Per-tile buffers live in a per-thread scratch that is reused: nothing
 //! is allocated per ray or per tile.
@@ -40,7 +45,8 @@ use rayon::prelude::*;
 use crate::math::{Aabb, Interval, Ray};
 use crate::render::camera::{Camera, RayGen};
 use crate::render::clip::kept_intervals;
-use crate::render::scene::{CountStats, Hit, IsoScene, NoStats, Stats, TraversalCounts};
+use crate::render::colormap::Colormap;
+use crate::render::scene::{CountStats, Hit, HitField, IsoScene, NoStats, Stats, TraversalCounts};
 use crate::render::settings::RenderSettings;
 use crate::render::shade::Shader;
 
@@ -87,6 +93,38 @@ pub struct Frame {
     pub elapsed: Duration,
 }
 
+/// A surface's colouring resolved for one frame: the field sampled at its hits, and the
+/// colormap over `range` (`[min, max]`, values outside clamped) it is shown through.
+#[derive(Clone, Copy)]
+pub struct SurfaceColoring<'a> {
+    pub field: &'a dyn HitField,
+    pub colormap: Colormap,
+    pub range: [f32; 2],
+}
+
+impl std::fmt::Debug for SurfaceColoring<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SurfaceColoring")
+            .field("colormap", &self.colormap)
+            .field("range", &self.range)
+            .finish_non_exhaustive()
+    }
+}
+
+impl SurfaceColoring<'_> {
+    /// The base colour at world position `p` of a hit in `cell`; `flat` where the field has
+    /// no value (NaN).
+    #[inline]
+    pub fn color_at(&self, p: Vec3, cell: u32, flat: [f32; 3]) -> [f32; 3] {
+        let v = self.field.value_at(p, cell);
+        if v.is_nan() {
+            flat
+        } else {
+            self.colormap.map(v, self.range)
+        }
+    }
+}
+
 /// Renders `scene` as seen by `camera`. Returns `None` if `cancel` was set before the frame
 /// finished (checked once per tile).
 ///
@@ -115,6 +153,21 @@ pub fn render_into<S: IsoScene>(
     cancel: &AtomicBool,
     frame: &mut Frame,
 ) -> bool {
+    render_colored_into(scene, camera, settings, &[], cancel, frame)
+}
+
+/// [`render_into`] with surfaces coloured by other fields: `colorings[i]` (when present
+/// and `Some`) gives surface `i` of `settings.surfaces` its base colour at each hit; the
+/// others keep their flat colour. [`crate::render::Surface::color_by`] only describes a
+/// colouring: the caller resolves it into a [`SurfaceColoring`].
+pub fn render_colored_into<S: IsoScene>(
+    scene: &S,
+    camera: &Camera,
+    settings: &RenderSettings,
+    colorings: &[Option<SurfaceColoring<'_>>],
+    cancel: &AtomicBool,
+    frame: &mut Frame,
+) -> bool {
     let k = settings.supersample;
     if k > 1 && settings.scale <= 1 {
         // Out-of-range factors are refused by `validate`; here they only stay in bounds.
@@ -126,26 +179,33 @@ pub fn render_into<S: IsoScene>(
             ..settings.clone()
         };
         let mut fine = Frame::default();
-        if !render_into(scene, camera, &fine_settings, cancel, &mut fine) {
+        if !render_colored_into(scene, camera, &fine_settings, colorings, cancel, &mut fine) {
             return false;
         }
         crate::render::supersample::downsample_into(&fine, k, frame);
         return true;
     }
     let shadows = settings.shadows && Shader::new(&settings.light).casts_shadows();
+    let c = colorings;
     match (settings.collect_stats, shadows) {
-        (false, false) => render_impl::<S, NoStats, false>(scene, camera, settings, cancel, frame),
-        (false, true) => render_impl::<S, NoStats, true>(scene, camera, settings, cancel, frame),
-        (true, false) => {
-            render_impl::<S, CountStats, false>(scene, camera, settings, cancel, frame)
+        (false, false) => {
+            render_impl::<S, NoStats, false>(scene, camera, settings, c, cancel, frame)
         }
-        (true, true) => render_impl::<S, CountStats, true>(scene, camera, settings, cancel, frame),
+        (false, true) => render_impl::<S, NoStats, true>(scene, camera, settings, c, cancel, frame),
+        (true, false) => {
+            render_impl::<S, CountStats, false>(scene, camera, settings, c, cancel, frame)
+        }
+        (true, true) => {
+            render_impl::<S, CountStats, true>(scene, camera, settings, c, cancel, frame)
+        }
     }
 }
 
 /// Frame-wide constants shared by all tiles.
 struct Ctx<'a, I> {
     settings: &'a RenderSettings,
+    /// Per surface of `settings.surfaces`, its colouring (shorter or empty: flat colours).
+    colorings: &'a [Option<SurfaceColoring<'a>>],
     raygen: RayGen,
     shader: Shader,
     isovalues: Vec<f32>,
@@ -212,6 +272,8 @@ struct PendingShade {
     k: u32,
     /// Index into the settings' surfaces.
     surface: u32,
+    /// The hit's primitive ([`Hit::cell`]), for colouring.
+    cell: u32,
     t: f32,
     /// Normal facing the ray, and the direction to the light.
     normal: Vec3,
@@ -269,6 +331,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     scene: &S,
     camera: &Camera,
     settings: &RenderSettings,
+    colorings: &[Option<SurfaceColoring<'_>>],
     cancel: &AtomicBool,
     frame: &mut Frame,
 ) -> bool {
@@ -291,6 +354,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     };
     let ctx = Ctx {
         settings,
+        colorings,
         raygen: RayGen::new(camera, width, height),
         shader: Shader::new(&settings.light),
         isos: scene.prepare(&isovalues),
@@ -531,6 +595,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             sc.shade.push(PendingShade {
                 k: k as u32,
                 surface: surface as u32,
+                cell: hit.cell,
                 t: hit.t,
                 normal,
                 to_light,
@@ -601,8 +666,13 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             if st.layers == 0 {
                 st.depth = ps.t;
             }
+            // The one per-hit branch of colouring.
+            let base = match ctx.colorings.get(ps.surface as usize) {
+                Some(Some(c)) => c.color_at(sc.rays[k].at(ps.t), ps.cell, surface.color),
+                _ => surface.color,
+            };
             let rgb = ctx.shader.shade(
-                Vec3::from(surface.color),
+                Vec3::from(base),
                 ps.normal,
                 sc.rays[k].dir,
                 ps.to_light,
@@ -744,6 +814,97 @@ mod tests {
     /// `n·L = n·H = 1`.
     fn head_on(color: [f32; 3], l: &Light) -> [f32; 3] {
         color.map(|c| (c * (l.ambient + l.diffuse) + l.specular).min(1.0))
+    }
+
+    /// `f(p) = x`, NaN for `x > 0.6` (no data there).
+    struct XField;
+
+    impl HitField for XField {
+        fn value_at(&self, p: Vec3, _cell: u32) -> f32 {
+            if p.x > 0.6 { f32::NAN } else { p.x }
+        }
+    }
+
+    #[test]
+    fn coloured_surfaces_show_the_colormap_of_the_field_at_each_hit() {
+        // A unit sphere coloured by x under pure ambient light (shading = base colour): every
+        // hit pixel is the colormap of the analytic x of its hit point.
+        let scene = SphereScene::distance_field(Vec3::ZERO, cube(2.0));
+        let flat = [0.2, 0.9, 0.3];
+        let settings = RenderSettings {
+            width: 41,
+            height: 41,
+            surfaces: vec![Surface::new(1.0, flat)],
+            light: Light {
+                ambient: 1.0,
+                diffuse: 0.0,
+                specular: 0.0,
+                ..Light::default()
+            },
+            ..RenderSettings::default()
+        };
+        let cam = cam_z(5.0);
+        let range = [-1.0, 1.0];
+        let colorings = [Some(SurfaceColoring {
+            field: &XField,
+            colormap: Colormap::Magma,
+            range,
+        })];
+        let mut frame = Frame::default();
+        assert!(render_colored_into(
+            &scene,
+            &cam,
+            &settings,
+            &colorings,
+            &go(),
+            &mut frame
+        ));
+        let raygen = RayGen::new(&cam, 41, 41);
+        let (mut mapped, mut nan) = (0, 0);
+        for j in 0..41 {
+            for i in 0..41 {
+                let t = frame.depth[(j * 41 + i) as usize];
+                if !t.is_finite() {
+                    continue;
+                }
+                let ray = raygen.ray_at(i as f32 + 0.5, j as f32 + 0.5);
+                let p = ray.origin.as_dvec3() + ray.dir.as_dvec3() * f64::from(t);
+                // The hit lies on the analytic sphere.
+                assert!((p.length() - 1.0).abs() < 1e-5);
+                let x = p.x as f32;
+                let want = if x > 0.6 {
+                    nan += 1;
+                    flat
+                } else {
+                    mapped += 1;
+                    Colormap::Magma.map(x, range)
+                };
+                let px = pixel(&frame, i, j);
+                for c in 0..3 {
+                    assert!(
+                        (i32::from(px[c]) - i32::from(to_u8(want[c]))).abs() <= 1,
+                        "pixel {i},{j}: {px:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+        assert!(mapped > 250 && nan > 30, "{mapped} {nan}");
+        // The centre hit is at x = 0: the middle of magma.
+        let mid = Colormap::Magma.at(0.5).map(to_u8);
+        assert_eq!(&pixel(&frame, 20, 20)[..3], &mid[..]);
+        // No colouring (none given, or `None` for the surface): the flat picture, exactly.
+        let plain = render(&scene, &cam, &settings, &go()).unwrap();
+        let mut none = Frame::default();
+        assert!(render_colored_into(
+            &scene,
+            &cam,
+            &settings,
+            &[None],
+            &go(),
+            &mut none
+        ));
+        assert_eq!(none.rgba8, plain.rgba8);
+        assert_eq!(&pixel(&plain, 20, 20)[..3], &flat.map(to_u8)[..]);
     }
 
     #[test]

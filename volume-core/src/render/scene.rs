@@ -21,6 +21,18 @@ pub struct Hit {
     pub surface: u32,
     /// World-space unit normal (orientation unspecified; shading is two-sided).
     pub normal: Vec3,
+    /// The primitive holding the hit in the scene's own numbering, for colouring by another
+    /// field ([`HitField`]): a tet mesh's tet in BVH leaf order; 0 for scenes that locate
+    /// hits by position (grids).
+    pub cell: u32,
+}
+
+/// A field the renderer samples at shaded hits to colour a surface (one call per shaded
+/// hit, none during traversal).
+pub trait HitField: Sync {
+    /// The field's value at the world position `p` of a hit in primitive `cell`
+    /// ([`Hit::cell`]); NaN where the field has none (the surface's flat colour is drawn).
+    fn value_at(&self, p: Vec3, cell: u32) -> f32;
 }
 
 /// Counters in the spirit of thesis Tables 7.1 and 8.4.

@@ -11,7 +11,7 @@
 //!   (§8.4.2), isopolygon frustum culling (§8.2.3).
 //! - [`scene`]: [`TetScene`], the [`crate::render::IsoScene`] the renderer draws, with
 //!   faceted or smooth normals (§8.3), scalar/position refits for time steps (§8.5) and the
-//!   brute-force twin.
+//!   brute-force twin; [`TetField`], another point array sampled at hits (colouring).
 //! - [`steps`]: [`TetSteps`], time-varying meshes with a per-step BVH or one refit BVH (§8.5).
 
 pub mod bvh;
@@ -29,6 +29,6 @@ pub use mesh::{
     split_wedge,
 };
 pub use probe::{TetProbe, probe_tets};
-pub use scene::{TetNormals, TetScene};
+pub use scene::{TetField, TetNormals, TetScene};
 pub use steps::{StepScheme, TetStep, TetSteps};
 pub use traverse::{MAX_PACKET, RawHit};
