@@ -4,6 +4,9 @@
 //!
 //! - [`cli`]: the subcommands (`info`, `generate`, `render`, `bench`, ...), each a module with
 //!   clap `Args` and a `run` function, so tests call them without spawning a process.
+//! - [`coloring`]: surfaces coloured by another field (a mesh array, a grid's gradient
+//!   magnitude or a second volume on its grid) resolved against a scene, and
+//!   [`scalar_bar`], the bar composited into image outputs.
 //! - [`export`]: the visible isosurfaces as a PLY, STL or OBJ triangle mesh (CLI, viewer and
 //!   Python share it).
 //! - [`output`]: PNG, `.npy`, report and session outputs through `formats::output` (never
@@ -19,9 +22,11 @@
 //!   GUI dependencies (the Python package, `app/python`, builds it so).
 
 pub mod cli;
+pub mod coloring;
 pub mod export;
 pub mod output;
 pub mod progress;
+pub mod scalar_bar;
 pub mod scene;
 #[cfg(feature = "viewer")]
 pub mod ui;

@@ -27,7 +27,8 @@
 //! # Ok(()) }
 //! ```
 //!
-//! - Rendering: [`AnyScene::render`] calls [`volume_core::render::render`] once, on the
+//! - Rendering: [`AnyScene::render`] calls [`volume_core::render::render_colored_into`]
+//!   once (surfaces coloured by another field resolved by [`crate::coloring`]), on the
 //!   typed scene ([`AnyScene::visit`] hands it to any [`SceneVisitor`], fully monomorphized:
 //!   no dynamic dispatch per ray). Shading, transparency, clipping and shadows are the
 //!   renderer's, shared by all kinds.
@@ -58,17 +59,20 @@
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, bail};
 use formats::mesh::{LoadedMesh, MeshSeries, StepData};
 use volume_core::grid::AnyGridScene;
+use volume_core::grid::VolumeSampler;
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::ooc::{AnyOocVolume, OocOptions};
 use volume_core::render::SceneVisitor;
-use volume_core::render::{Camera, Frame, IsoScene, RenderSettings, Surface, render};
+use volume_core::render::{
+    Camera, Frame, IsoScene, RenderSettings, Surface, SurfaceColoring, render_colored_into,
+};
 use volume_core::series::TimeSeries;
 use volume_core::stats::Histogram;
 use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
@@ -287,18 +291,31 @@ pub fn is_cancelled(error: &anyhow::Error) -> bool {
     error.downcast_ref::<Cancelled>().is_some()
 }
 
-/// Renders a typed scene with [`volume_core::render::render`] (the one shading path).
+/// Renders a typed scene with [`volume_core::render::render_colored_into`] (the one
+/// shading path).
 #[derive(Clone, Copy)]
 pub struct RenderVisitor<'a> {
     pub camera: &'a Camera,
     pub settings: &'a RenderSettings,
+    /// Per surface, its resolved colouring (empty: flat colours;
+    /// [`AnyScene::render`] resolves them from the settings).
+    pub colorings: &'a [Option<SurfaceColoring<'a>>],
     pub cancel: &'a AtomicBool,
 }
 
 impl SceneVisitor for RenderVisitor<'_> {
     type Output = Option<Frame>;
     fn visit<S: IsoScene>(self, scene: &S) -> Option<Frame> {
-        render(scene, self.camera, self.settings, self.cancel)
+        let mut frame = Frame::default();
+        render_colored_into(
+            scene,
+            self.camera,
+            self.settings,
+            self.colorings,
+            self.cancel,
+            &mut frame,
+        )
+        .then_some(frame)
     }
 }
 
@@ -473,7 +490,9 @@ impl AnyScene {
     }
 
     /// Renders one frame (`None` if `cancel` was set). Out-of-core scenes first request the
-    /// treelets of the active isovalues, then draw what is loaded (module docs).
+    /// treelets of the active isovalues, then draw what is loaded (module docs). Surfaces
+    /// with a [`volume_core::render::ColorBy`] are coloured by their field; one that does
+    /// not resolve (check with [`AnyScene::check_colorings`] first) keeps its flat colour.
     pub fn render(
         &self,
         camera: &Camera,
@@ -483,9 +502,12 @@ impl AnyScene {
         if let AnyScene::Ooc(o) = self {
             o.set_isovalues(&settings.active_isovalues().0);
         }
+        let resolved = self.resolve_colorings(settings);
+        let colorings = crate::coloring::as_colorings(&resolved);
         self.visit(RenderVisitor {
             camera,
             settings,
+            colorings: &colorings,
             cancel,
         })
     }
@@ -692,6 +714,20 @@ pub struct GridData {
     /// VTK image data: the scalar point arrays and the one drawn.
     arrays: Vec<String>,
     field: Option<String>,
+    /// Volumes on the same grid that surfaces can be coloured by, by name.
+    color_volumes: Vec<ColorVolume>,
+    /// The gradient magnitude's range over the current step (computed on first use).
+    gradient_range: OnceLock<Option<(f64, f64)>>,
+}
+
+/// A volume to colour a grid's surfaces by ([`GridData::add_color_volume`]).
+#[derive(Debug)]
+pub struct ColorVolume {
+    /// The name it was added under (the path as given).
+    pub name: String,
+    pub sampler: VolumeSampler,
+    /// Its finite physical value range.
+    pub value_range: Option<(f64, f64)>,
 }
 
 impl std::fmt::Debug for GridData {
@@ -742,6 +778,8 @@ impl GridData {
             open: options.open.clone(),
             arrays,
             field,
+            color_volumes: Vec::new(),
+            gradient_range: OnceLock::new(),
         })
     }
 
@@ -759,6 +797,8 @@ impl GridData {
             open: formats::OpenOptions::default(),
             arrays: Vec::new(),
             field: None,
+            color_volumes: Vec::new(),
+            gradient_range: OnceLock::new(),
         }
     }
 
@@ -779,7 +819,61 @@ impl GridData {
     pub fn refresh(&mut self) -> StepSwitch {
         let switch = update_grid_scene(&mut self.scene, &self.volume);
         self.value_range = self.volume.value_stats().finite_range;
+        self.gradient_range = OnceLock::new();
         switch
+    }
+
+    /// The range of the drawn field's gradient magnitude (computed once per step, scanning
+    /// every voxel).
+    pub fn gradient_range(&self) -> Option<(f64, f64)> {
+        *self
+            .gradient_range
+            .get_or_init(|| self.scene.gradient_magnitude_range())
+    }
+
+    /// The volumes added to colour surfaces by.
+    pub fn color_volumes(&self) -> &[ColorVolume] {
+        &self.color_volumes
+    }
+
+    /// The colour volume added as `name`.
+    pub fn color_volume(&self, name: &str) -> Option<&ColorVolume> {
+        self.color_volumes.iter().find(|v| v.name == name)
+    }
+
+    /// Opens `path` as a volume to colour surfaces by, refusing one whose dims or geometry
+    /// differ from this volume's; returns the name to colour by (the path as given). Adding
+    /// a name again reloads it.
+    pub fn add_color_volume(&mut self, path: &Path) -> anyhow::Result<String> {
+        let (name, volume) = read_color_volume(path)?;
+        self.set_color_volume(&name, volume)?;
+        Ok(name)
+    }
+
+    /// Adds `volume` (already in memory) as the colour volume `name`; see
+    /// [`Self::add_color_volume`].
+    pub fn set_color_volume(
+        &mut self,
+        name: &str,
+        volume: RectilinearVolume,
+    ) -> anyhow::Result<()> {
+        crate::coloring::check_same_grid(&self.volume.grid, &volume.grid).with_context(|| {
+            format!(
+                "{name} cannot colour {}: it must have the same dims and geometry",
+                self.path.display()
+            )
+        })?;
+        let value_range = volume.value_stats().finite_range;
+        let entry = ColorVolume {
+            name: name.to_owned(),
+            sampler: VolumeSampler::new(volume),
+            value_range,
+        };
+        match self.color_volumes.iter_mut().find(|v| v.name == name) {
+            Some(v) => *v = entry,
+            None => self.color_volumes.push(entry),
+        }
+        Ok(())
     }
 
     /// Loads `step` through the series (which caches it) after checking its range.
@@ -793,6 +887,18 @@ impl GridData {
             .step(step)
             .with_context(|| format!("loading time step {step} of {}", self.path.display()))?;
         Ok(Some(v))
+    }
+}
+
+/// Reads `path` as one volume to colour surfaces by ([`GridData::set_color_volume`] checks
+/// its grid): the name to colour by (the path as given) and the volume.
+pub fn read_color_volume(path: &Path) -> anyhow::Result<(String, RectilinearVolume)> {
+    let name = path.display().to_string();
+    match formats::open(path, &formats::OpenOptions::default())? {
+        formats::Dataset::Volume(v) => Ok((name, v)),
+        formats::Dataset::Series(_) => {
+            bail!("{name}: a time series cannot colour a surface: give one volume on the same grid")
+        }
     }
 }
 
@@ -886,6 +992,7 @@ impl SceneData for GridData {
         };
         let switch = update_grid_scene(&mut self.scene, &v);
         self.value_range = v.value_stats().finite_range;
+        self.gradient_range = OnceLock::new();
         self.volume = v;
         self.step = step;
         Ok(switch)
@@ -959,6 +1066,7 @@ impl SceneData for GridData {
         };
         update_grid_scene(&mut self.scene, &volume);
         self.value_range = volume.value_stats().finite_range;
+        self.gradient_range = OnceLock::new();
         self.volume = volume;
         self.series = series;
         self.open = open;
@@ -1170,6 +1278,11 @@ impl TetData {
             .iter()
             .find(|f| f.name == self.field)
             .map(|f| f.values.as_slice())
+    }
+
+    /// The point array `name` at the current step (any array, not only the drawn one).
+    pub fn step_field(&self, name: &str) -> Option<&PointField> {
+        self.step_fields.iter().find(|f| f.name == name)
     }
 
     /// Reads `step`'s arrays and positions (step 0: the arrays as read at open). Touches no

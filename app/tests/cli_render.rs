@@ -1150,3 +1150,248 @@ fn supersampling_is_the_box_filter_of_the_larger_render() {
     let e = fails(&["render", s(&vol), "--supersample", "9", "-o", s(&dir.path().join("x.png"))]);
     assert!(e.contains("supersampling 9 must be between 1 and 8"), "{e}");
 }
+
+/// `--color-by` with another volume on the same grid: f = x. Shading is linear in the base
+/// colour per channel (`c·L + S`), so two flat renders (grey 128 and black) give `L` and `S`
+/// at each pixel, and the coloured pixel must be `coolwarm(x_hit)·L + S`, with `x_hit` from
+/// the depth image and the camera's rays. The scalar bar is drawn unless `--no-scalar-bar`,
+/// on the right only.
+#[test]
+fn color_by_another_volume_colours_pixels_by_its_value_at_the_hit() {
+    use volume_core::render::{Colormap, RayGen};
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    // f = x on the sphere's grid, as i16 x·1000 with a value map would test native types:
+    // here a plain f32 volume (trilinear interpolation of a linear field is exact).
+    let sphere = formats::open(&vol, &formats::OpenOptions::default()).unwrap();
+    let formats::Dataset::Volume(sphere) = sphere else {
+        panic!("one volume")
+    };
+    let g = sphere.grid.clone();
+    let d = g.dims();
+    let mut xs = Vec::new();
+    for k in 0..d[2] {
+        for j in 0..d[1] {
+            for i in 0..d[0] {
+                xs.push(g.grid_position(i, j, k).x as f32);
+            }
+        }
+    }
+    let x_vol = volume_core::RectilinearVolume::new(g, xs.into()).unwrap();
+    let x_path = dir.path().join("x.nrrd");
+    write_nrrd(
+        &x_path,
+        &x_vol,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
+    let cam = Camera {
+        eye: Vec3::new(0.4, 0.3, 4.0),
+        target: Vec3::new(0.1, -0.05, 0.0),
+        up: Vec3::Y,
+        vfov_deg: 30.0,
+        projection: volume_core::render::Projection::Pinhole,
+        ortho_height: None,
+    };
+    let cam_path = dir.path().join("cam.json");
+    std::fs::write(&cam_path, serde_json::to_string(&cam).unwrap()).unwrap();
+    let (w, h) = (160u32, 100u32);
+    let size = format!("{w}x{h}");
+    let render = |name: &str, extra: &[&str]| {
+        let png = dir.path().join(format!("{name}.png"));
+        let npy = dir.path().join(format!("{name}.npy"));
+        let mut args = vec![
+            "render",
+            s(&vol),
+            "--camera",
+            s(&cam_path),
+            "--size",
+            &size,
+            "-o",
+            s(&png),
+            "--depth-out",
+            s(&npy),
+        ];
+        args.extend_from_slice(extra);
+        ok(&args);
+        let img = image::open(&png).unwrap().to_rgb8().into_raw();
+        (img, read_depth(&npy))
+    };
+    let (grey, depth) = render("grey", &["--iso", "0.6:#808080"]);
+    let (black, _) = render("black", &["--iso", "0.6:#000000"]);
+    let colour_args = [
+        "--iso",
+        "0.6:#808080",
+        "--color-by",
+        s(&x_path),
+        "--colormap",
+        "coolwarm",
+        "--color-range",
+        "-0.6,0.8",
+    ];
+    let mut plain_args = colour_args.to_vec();
+    plain_args.push("--no-scalar-bar");
+    let (coloured, depth_c) = render("coloured", &plain_args);
+    assert_eq!(
+        depth.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
+        depth_c.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
+        "colouring changes no geometry"
+    );
+    let raygen = RayGen::new(&cam, w, h);
+    let (mut compared, mut worst) = (0, 0.0f32);
+    let (mut low, mut high) = (false, false);
+    for py in 0..h {
+        for px in 0..w {
+            let p = (py * w + px) as usize;
+            let t = depth[p];
+            if !t.is_finite() {
+                continue;
+            }
+            let ray = raygen.ray_at(px as f32 + 0.5, py as f32 + 0.5);
+            let x = ray.origin.x + ray.dir.x * t;
+            let base = Colormap::Coolwarm.map(x, [-0.6, 0.8]);
+            low |= x < -0.3;
+            high |= x > 0.5;
+            for c in 0..3 {
+                let (g, k) = (f32::from(grey[3 * p + c]), f32::from(black[3 * p + c]));
+                let light = (g - k) * 255.0 / 128.0;
+                let want = (base[c] * light + k).min(255.0);
+                let got = f32::from(coloured[3 * p + c]);
+                worst = worst.max((got - want).abs());
+            }
+            compared += 1;
+        }
+    }
+    assert!(compared > 1000 && low && high, "{compared} {low} {high}");
+    // Rounding of three 8-bit images (the lit factor is doubled from the grey render).
+    assert!(worst <= 4.0, "worst channel error {worst}");
+
+    // With the scalar bar: the same picture except in a panel on the right.
+    let (barred, _) = render("barred", &colour_args);
+    let changed: Vec<u32> = (0..(w * h) as usize)
+        .filter(|&p| barred[3 * p..3 * p + 3] != coloured[3 * p..3 * p + 3])
+        .map(|p| p as u32 % w)
+        .collect();
+    assert!(changed.len() > 200, "{} pixels changed", changed.len());
+    assert!(
+        changed.iter().all(|&x| x >= w / 2),
+        "the bar sits on the right"
+    );
+}
+
+/// `--color-by` errors name what the data can be coloured by; the gradient of a volume and
+/// the point arrays of a mesh colour pictures.
+#[test]
+fn color_by_errors_list_the_available_fields() {
+    let dir = tempfile::tempdir().unwrap();
+    let ball = dir.path().join("ball.vtu");
+    ok(&["generate", "tet-ball", "--tets", "2000", "-o", s(&ball)]);
+    let out = dir.path().join("o.png");
+    let e = fails(&["render", s(&ball), "--color-by", "nope", "-o", s(&out)]);
+    assert!(
+        e.contains("nope") && e.contains("distance, gaussians, moving_gaussian"),
+        "{e}"
+    );
+    let e = fails(&["render", s(&ball), "--color-by", "gradient", "-o", s(&out)]);
+    assert!(e.contains("gradient") && e.contains("distance"), "{e}");
+    let e = fails(&["render", s(&ball), "--colormap", "magma", "-o", s(&out)]);
+    assert!(e.contains("--color-by"), "{e}");
+    let e = fails(&[
+        "render",
+        s(&ball),
+        "--color-by",
+        "distance",
+        "--colormap",
+        "jet",
+        "-o",
+        s(&out),
+    ]);
+    assert!(
+        e.contains("jet") && e.contains("viridis, magma, coolwarm, grey"),
+        "{e}"
+    );
+    let e = fails(&[
+        "render",
+        s(&ball),
+        "--color-by",
+        "distance",
+        "--color-range",
+        "2,1",
+        "-o",
+        s(&out),
+    ]);
+    assert!(e.contains("2,1") && e.contains("MIN < MAX"), "{e}");
+    assert!(!out.exists());
+    // A mesh array and a volume's gradient render (and differ from the flat picture).
+    let flat = dir.path().join("flat.png");
+    ok(&[
+        "render",
+        s(&ball),
+        "--iso",
+        "0.5",
+        "--size",
+        "64x48",
+        "-o",
+        s(&flat),
+    ]);
+    let by_array = dir.path().join("array.png");
+    ok(&[
+        "render",
+        s(&ball),
+        "--iso",
+        "0.5",
+        "--size",
+        "64x48",
+        "--color-by",
+        "gaussians",
+        "-o",
+        s(&by_array),
+    ]);
+    assert_ne!(
+        std::fs::read(&flat).unwrap(),
+        std::fs::read(&by_array).unwrap()
+    );
+    let vol = sphere_volume(dir.path());
+    let by_gradient = dir.path().join("gradient.png");
+    ok(&[
+        "render",
+        s(&vol),
+        "--iso",
+        "0.6",
+        "--size",
+        "64x48",
+        "--color-by",
+        "gradient",
+        "--colormap",
+        "magma",
+        "-o",
+        s(&by_gradient),
+    ]);
+    // Another volume must have the same grid.
+    let small = dir.path().join("small.nrrd");
+    let v = data_samples::Generator::Sphere
+        .generate([21; 3], VoxelType::F32)
+        .unwrap();
+    write_nrrd(
+        &small,
+        &v,
+        NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
+    let e = fails(&["render", s(&vol), "--color-by", s(&small), "-o", s(&out)]);
+    assert!(
+        e.contains("small.nrrd") && e.contains("21x21x21") && e.contains("41x41x41"),
+        "{e}"
+    );
+    let e = fails(&[
+        "render",
+        s(&vol),
+        "--color-by",
+        "missing.nrrd",
+        "-o",
+        s(&out),
+    ]);
+    assert!(e.contains("missing.nrrd"), "{e}");
+}

@@ -119,6 +119,7 @@ impl PreparedScene for RecordingScene {
             elapsed: (*self.recorder.render_time.lock().unwrap()).max(Duration::from_millis(1)),
             rays: u64::from(w * h),
             lod_level: None,
+            scalar_bars: Vec::new(),
         }))
     }
 
@@ -190,6 +191,8 @@ impl Backend for TestBackend {
             histogram_note: String::new(),
             fields: Vec::new(),
             field: None,
+            color_fields: Vec::new(),
+            gradient_coloring: true,
             times: vec![0.0, 0.5, 1.0, 1.5],
             scene: self.scene("series.test"),
         })
@@ -1644,6 +1647,8 @@ fn movies_write_one_frame_per_step_or_orbit_position() {
     }
     let turned = (eyes[5].0 - eyes[5].1).angle_between(eyes[0].0 - eyes[0].1);
     assert!((turned.to_degrees() - 75.0).abs() < 0.5, "{}", turned.to_degrees());
+}
+
 /// File → Export isosurface… writes, through the in-app browser, the visible surface with
 /// the enabled clip plane at the shown step: the very STL `isoscope export` writes for the
 /// same isovalue and plane (the viewer's plane given to the CLI in world units).
@@ -1726,4 +1731,78 @@ fn export_isosurface_writes_the_cli_mesh_of_the_shown_state() {
             && stdout.contains(&format!("{} triangles", count(&theirs))),
         "{text} / {stdout}"
     );
+}
+
+/// Colouring in the isosurface panel: "Colour by" a point array re-renders the surface
+/// through the colormap (the same picture as the library renders for the request) and shows
+/// a scalar bar over the view; the "Scalar bar" box hides it; solid brings the flat colour
+/// back.
+#[test]
+fn colour_by_switches_the_colouring_and_shows_a_scalar_bar() {
+    use isoscope::scene::{SceneOptions, open_scene};
+    use volume_core::render::ColorField;
+
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = data_samples::tets::tet_mesh(data_samples::tets::TetShape::Ball, 8).unwrap();
+    let path = dir.path().join("ball.vtu");
+    formats::mesh::write_vtu(&path, &mesh, formats::output::Replace::Refuse).unwrap();
+    // Tall enough for the surface's colouring controls without scrolling the side panel.
+    let files = vec![path.clone()];
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1000.0, 1300.0))
+        .build_eframe(move |cc| {
+            ViewerApp::with_backend(&cc.egui_ctx, Arc::new(CoreBackend), files)
+        });
+    step_until(&mut h, "the mesh", |a| a.data().is_some());
+    settle(&mut h);
+    assert!(h.state().shown_frame().unwrap().scalar_bars.is_empty());
+    assert!(h.query_by_label_contains("Scalar bar gaussians").is_none());
+    let flat = render_both(
+        h.state(),
+        &open_scene(&path, &SceneOptions::default()).unwrap(),
+        &small_request(h.state()),
+    )
+    .0;
+
+    h.get_by_role_and_label(Role::ComboBox, "Colour by 1")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("gaussians").click();
+    h.run_steps(2);
+    settle(&mut h);
+    let app = h.state();
+    let c = app.state.surfaces[0].color_by.clone().unwrap();
+    assert_eq!(c.field, ColorField::Field("gaussians".into()));
+    let shown = app.shown_frame().unwrap();
+    assert_eq!(shown.request.surfaces[0].color_by.as_ref(), Some(&c));
+    assert_eq!(shown.scalar_bars.len(), 1);
+    assert_eq!(shown.scalar_bars[0].label, "gaussians");
+    // The default range is the array's data range.
+    let g = &mesh.fields.iter().find(|f| f.name == "gaussians").unwrap();
+    let (lo, hi) = g.value_range().unwrap();
+    assert_eq!(shown.scalar_bars[0].range, [lo, hi]);
+    h.get_by_label_contains("Scalar bar gaussians");
+    // The viewer's frame is the library's coloured render of the request, not the flat one.
+    let truth = open_scene(&path, &SceneOptions::default()).unwrap();
+    let (ours, theirs) = render_both(h.state(), &truth, &small_request(h.state()));
+    assert_eq!(ours, theirs);
+    assert_ne!(ours, flat);
+
+    // The scalar bar box hides the overlay.
+    h.get_by_label("Scalar bar 1").click();
+    h.run_steps(2);
+    settle(&mut h);
+    assert!(h.state().shown_frame().unwrap().scalar_bars.is_empty());
+    assert!(h.query_by_label_contains("Scalar bar gaussians").is_none());
+
+    // Solid: the flat colour again.
+    h.get_by_role_and_label(Role::ComboBox, "Colour by 1")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("solid").click();
+    h.run_steps(2);
+    settle(&mut h);
+    assert_eq!(h.state().state.surfaces[0].color_by, None);
+    let (ours, _) = render_both(h.state(), &truth, &small_request(h.state()));
+    assert_eq!(ours, flat);
 }

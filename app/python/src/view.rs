@@ -29,8 +29,8 @@ use pyo3::types::PyBytes;
 use rayon::prelude::*;
 use volume_core::math::Ray;
 use volume_core::render::{
-    Camera as CoreCamera, ClipRegion, Frame, IsoScene, Light, LightKind, NoStats, Projection,
-    RayGen, RenderSettings, SceneVisitor,
+    Camera as CoreCamera, ClipRegion, ColorBy, ColorField, Frame, IsoScene, Light, LightKind,
+    NoStats, Projection, RayGen, RenderSettings, SceneVisitor,
 };
 use volume_core::tet::BvhOptions;
 
@@ -192,6 +192,56 @@ fn clip(
     parse(&text).map_err(|e| value_error(format!("{what}: {e}")))
 }
 
+impl Scene {
+    /// The colouring `render`'s `color_by`, `colormap`, `color_range` and `scalar_bar` give;
+    /// a volume's other volume (a path) is opened and checked against its grid first.
+    fn coloring(
+        &self,
+        py: Python<'_>,
+        color_by: Option<&str>,
+        colormap: Option<&str>,
+        color_range: Option<(f32, f32)>,
+        scalar_bar: bool,
+    ) -> PyResult<Option<ColorBy>> {
+        let Some(spec) = color_by else {
+            if colormap.is_some() || color_range.is_some() {
+                return Err(value_error(
+                    "colormap and color_range apply with color_by".into(),
+                ));
+            }
+            return Ok(None);
+        };
+        let colormap = colormap
+            .map(|c| isoscope::cli::render::parse_colormap(c).map_err(value_error))
+            .transpose()?
+            .unwrap_or_default();
+        let field = isoscope::cli::render::color_field(spec, &self.loaded.read());
+        if let ColorField::Field(name) = &field {
+            let missing = matches!(
+                &*self.loaded.read(),
+                AnyScene::Grid(g) if g.color_volume(name).is_none()
+            );
+            if missing {
+                let loaded = &self.loaded;
+                let path = std::path::PathBuf::from(name);
+                interruptible(py, &AtomicBool::new(false), move || {
+                    match &mut *loaded.write() {
+                        AnyScene::Grid(g) => g.add_color_volume(&path).map(|_| ()),
+                        _ => Ok(()),
+                    }
+                })?
+                .py_err()?;
+            }
+        }
+        Ok(Some(ColorBy {
+            field,
+            colormap,
+            range: color_range.map(|(lo, hi)| [lo, hi]),
+            scalar_bar,
+        }))
+    }
+}
+
 #[pymethods]
 impl Scene {
     /// A scene of `data` (a `Volume`, `Mesh`, `OocVolume` or `Series`). `intersector`:
@@ -319,7 +369,7 @@ impl Scene {
 
     /// Renders the isosurfaces; see the stub for the arguments. `camera` or `orbit=(az, el)`
     /// (default `(30, 20)`, framing the data as the CLI's `--orbit`).
-    #[pyo3(signature = (isovalues=None, *, camera=None, orbit=None, vfov=40.0, size=(800, 600), shadows=false, light_dir=None, clip_boxes=None, clip_planes=None, layers=4, background=None, supersample=1, level_timeout=120.0))]
+    #[pyo3(signature = (isovalues=None, *, camera=None, orbit=None, vfov=40.0, size=(800, 600), shadows=false, light_dir=None, clip_boxes=None, clip_planes=None, layers=4, background=None, supersample=1, level_timeout=120.0, color_by=None, colormap=None, color_range=None, scalar_bar=true))]
     fn render(
         &self,
         py: Python<'_>,
@@ -336,13 +386,27 @@ impl Scene {
         background: Option<Bound<'_, PyAny>>,
         supersample: u32,
         level_timeout: f64,
+        color_by: Option<String>,
+        colormap: Option<String>,
+        color_range: Option<(f32, f32)>,
+        scalar_bar: bool,
     ) -> PyResult<Image> {
         let specs = isovalues
             .unwrap_or_default()
             .iter()
             .map(iso_spec)
             .collect::<PyResult<Vec<_>>>()?;
-        let surfaces = surfaces_for(&specs, &self.loaded.read()).py_err()?;
+        let mut surfaces = surfaces_for(&specs, &self.loaded.read()).py_err()?;
+        let coloring = self.coloring(
+            py,
+            color_by.as_deref(),
+            colormap.as_deref(),
+            color_range,
+            scalar_bar,
+        )?;
+        if let Some(c) = coloring {
+            isoscope::coloring::color_all(&mut surfaces, &c);
+        }
         let camera = match (camera, orbit) {
             (Some(_), Some(_)) => {
                 return Err(value_error("give camera or orbit, not both".into()));
@@ -395,6 +459,7 @@ impl Scene {
             ..defaults
         };
         settings.validate().py_err()?;
+        self.loaded.read().check_colorings(&settings).py_err()?;
         if !(level_timeout.is_finite() && level_timeout >= 0.0) {
             return Err(value_error(format!(
                 "level_timeout {level_timeout} must be a number of seconds >= 0"
@@ -402,12 +467,14 @@ impl Scene {
         }
         let timeout = Duration::from_secs_f64(level_timeout.min(1e9));
         let cancel = AtomicBool::new(false);
-        let frame = self
+        let mut frame = self
             .with_scene(py, &cancel, |scene| {
                 render_scene_with(scene, &camera, &settings, timeout, &cancel)
             })?
             .py_err()?
             .frame;
+        let bars = self.loaded.read().scalar_bars(&settings);
+        isoscope::scalar_bar::composite(&mut frame.rgba8, frame.width, frame.height, &bars);
         Ok(Image { frame })
     }
 

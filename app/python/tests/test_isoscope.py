@@ -453,3 +453,65 @@ def test_export_writes_the_cli_mesh_at_the_current_step(cli, tmp_path):
     assert scene.export(ours, [0.5], force=True)["triangles"] != summary["triangles"]
     with pytest.raises(ValueError, match=r"\.ply"):
         scene.export(tmp_path / "x.vrml", [0.5])
+
+
+# --- colouring by another field ----------------------------------------------------------
+
+
+def test_color_by_renders_as_the_cli(cli, cli_render, tmp_path):
+    """Another volume on the same grid, a volume's gradient and a mesh array colour the
+    picture exactly as ``isoscope render --color-by`` does (scalar bar included)."""
+    blobs0, blobs1 = SAMPLES / "blobs24_000.nrrd", SAMPLES / "blobs24_001.nrrd"
+    scene = isoscope.Scene(isoscope.open(blobs0))
+    size, size_arg = (240, 100), "240x100"
+    img = scene.render(
+        [0.5], orbit=(30, 20), size=size, color_by=str(blobs1), colormap="magma", color_range=(0, 1)
+    )
+    png, depth = cli_render(
+        blobs0, "--iso", "0.5", "--orbit", "30,20", "--size", size_arg,
+        "--color-by", blobs1, "--colormap", "magma", "--color-range", "0,1",
+    )
+    np.testing.assert_array_equal(img.depth, depth)
+    assert png_bytes_of(img, tmp_path) == png
+    flat = scene.render([0.5], orbit=(30, 20), size=size)
+    assert not np.array_equal(flat.rgba, img.rgba)
+    np.testing.assert_array_equal(flat.depth, img.depth)
+    # Without the bar, only the right part of the image differs from with it.
+    bare = scene.render(
+        [0.5], orbit=(30, 20), size=size, color_by=str(blobs1), colormap="magma",
+        color_range=(0, 1), scalar_bar=False,
+    )
+    cols = np.nonzero((bare.rgba != img.rgba).any(axis=2).any(axis=0))[0]
+    assert cols.size > 0 and cols.min() >= size[0] // 2
+
+    grad = scene.render([0.5], orbit=(30, 20), size=size, color_by="gradient")
+    png, _ = cli_render(blobs0, "--iso", "0.5", "--orbit", "30,20", "--size", size_arg, "--color-by", "gradient")
+    assert png_bytes_of(grad, tmp_path, "grad.png") == png
+
+    ball = tmp_path / "ball.vtu"
+    assert cli("generate", "tet-ball", "--tets", "3000", "-o", ball).returncode == 0
+    mesh_scene = isoscope.Scene(isoscope.open(ball))
+    img = mesh_scene.render([0.5], orbit=(10, 30), size=size, color_by="gaussians", colormap="coolwarm")
+    png, _ = cli_render(
+        ball, "--iso", "0.5", "--orbit", "10,30", "--size", size_arg, "--color-by", "gaussians", "--colormap", "coolwarm"
+    )
+    assert png_bytes_of(img, tmp_path, "mesh.png") == png
+
+
+def test_color_by_errors_name_the_available_fields(cli, tmp_path):
+    ball = tmp_path / "ball.vtu"
+    assert cli("generate", "tet-ball", "--tets", "2000", "-o", ball).returncode == 0
+    scene = isoscope.Scene(isoscope.open(ball))
+    with pytest.raises(ValueError) as e:
+        scene.render([0.5], color_by="nope")
+    assert "nope" in str(e.value) and "distance, gaussians, moving_gaussian" in str(e.value)
+    with pytest.raises(ValueError, match="jet"):
+        scene.render([0.5], color_by="distance", colormap="jet")
+    with pytest.raises(ValueError, match="color_by"):
+        scene.render([0.5], colormap="magma")
+    with pytest.raises(ValueError, match="range"):
+        scene.render([0.5], color_by="distance", color_range=(2, 1))
+    vol = isoscope.Scene(isoscope.open(PHANTOM))
+    with pytest.raises(ValueError) as e:
+        vol.render(color_by=str(SAMPLES / "sphere32_f32.nrrd"))
+    assert "same dims and geometry" in str(e.value) and "32x32x32" in str(e.value)

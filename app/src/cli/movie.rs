@@ -145,7 +145,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         } else {
             orbit_camera(&first, args.axis.unit(), args.degrees, k, frames)
         };
-        let Rendered { frame, .. } = render_scene(&scene, &camera, &settings, level_timeout)?;
+        let Rendered { mut frame, .. } = render_scene(&scene, &camera, &settings, level_timeout)?;
+        // Per frame: a data range follows the time step.
+        let bars = scene.scalar_bars(&settings);
+        crate::scalar_bar::composite(&mut frame.rgba8, frame.width, frame.height, &bars);
         crate::output::save_rgba_image(
             &frame_path(&args.output, k),
             &frame.rgba8,

@@ -1,6 +1,7 @@
 //! `isoscope render FILE [--iso V[:#RRGGBB[:OPACITY]]]... [--camera cam.json | --orbit AZ,EL]
 //! [--size WxH] [--intersector NAME] [--shadows] [--light-dir x,y,z] [--clip-box ...]...
-//! [--clip-plane ...]... [--layers N] [--background #RRGGBB] [--step N] -o out.png
+//! [--clip-plane ...]... [--layers N] [--background #RRGGBB] [--step N] [--color-by NAME
+//! [--colormap NAME] [--color-range MIN,MAX] [--no-scalar-bar]] -o out.png
 //! [--depth-out depth.npy]`, plus for tetrahedral meshes `[--field NAME] [--bvh bih|sah]
 //! [--leaf-size N] [--packet SIDE] [--normals faceted|smooth]` and for `.isot` files
 //! `[--level-timeout SECS] [--budget-mb MIB]`.
@@ -24,7 +25,8 @@ use volume_core::grid::AnyGridScene;
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::render::{
-    Camera, ClipRegion, Frame, Keep, Light, LightKind, RenderSettings, Surface,
+    Camera, ClipRegion, ColorBy, ColorField, Colormap, Frame, Keep, Light, LightKind,
+    RenderSettings, Surface,
 };
 
 use super::npy;
@@ -144,6 +146,21 @@ pub struct SceneArgs {
     /// Time step of a series (volumes or meshes; default 0).
     #[arg(long, value_name = "N")]
     pub step: Option<usize>,
+    /// Colour every surface by another field through a colormap: a mesh point array,
+    /// `gradient` (a volume's gradient magnitude), or the path of another volume with the
+    /// same dims and geometry.
+    #[arg(long, value_name = "NAME")]
+    pub color_by: Option<String>,
+    /// Colormap of --color-by: viridis (default), magma, coolwarm or grey.
+    #[arg(long, value_name = "NAME", value_parser = parse_colormap, requires = "color_by")]
+    pub colormap: Option<Colormap>,
+    /// Values at the colormap's ends (default: the field's data range); values outside are
+    /// clamped.
+    #[arg(long, value_name = "MIN,MAX", value_parser = parse_color_range, allow_hyphen_values = true, requires = "color_by")]
+    pub color_range: Option<[f32; 2]>,
+    /// Leave the scalar bar of --color-by out of the image.
+    #[arg(long)]
+    pub no_scalar_bar: bool,
     #[command(flatten)]
     pub open: OpenArgs,
     #[command(flatten)]
@@ -153,16 +170,24 @@ pub struct SceneArgs {
 }
 
 impl SceneArgs {
-    /// Opens the file with these flags ([`open_with_flags`]).
+    /// Opens the file with these flags ([`open_with_flags`]), and for a volume coloured
+    /// by another volume (`--color-by PATH`), that volume.
     pub fn open_scene(&self) -> anyhow::Result<AnyScene> {
-        open_with_flags(
+        let mut scene = open_with_flags(
             &self.file,
             &self.open,
             &self.mesh,
             &self.ooc,
             self.step,
             self.intersector,
-        )
+        )?;
+        if let (Some(spec), AnyScene::Grid(g)) = (&self.color_by, &mut scene)
+            && spec != GRADIENT
+        {
+            let _spinner = Progress::spinner(format!("opening {spec}"));
+            g.add_color_volume(Path::new(spec)).context("--color-by")?;
+        }
+        Ok(scene)
     }
 
     /// The camera and render settings these flags give for `scene`.
@@ -171,10 +196,60 @@ impl SceneArgs {
         scene: &AnyScene,
         collect_stats: bool,
     ) -> anyhow::Result<(Camera, RenderSettings)> {
-        let surfaces = surfaces_for(&self.iso, scene)?;
+        let mut surfaces = surfaces_for(&self.iso, scene)?;
+        if let Some(color_by) = self.coloring(scene) {
+            crate::coloring::color_all(&mut surfaces, &color_by);
+        }
         let camera = self.view.camera(&scene.world_bounds(), self.size)?;
         let settings = settings_from(self, &camera, surfaces, collect_stats)?;
+        scene.check_colorings(&settings).context("--color-by")?;
         Ok((camera, settings))
+    }
+
+    /// The colouring `--color-by` and its flags give for `scene`.
+    fn coloring(&self, scene: &AnyScene) -> Option<ColorBy> {
+        let spec = self.color_by.as_ref()?;
+        Some(ColorBy {
+            field: color_field(spec, scene),
+            colormap: self.colormap.unwrap_or_default(),
+            range: self.color_range,
+            scalar_bar: !self.no_scalar_bar,
+        })
+    }
+}
+
+/// The `--color-by` word for a volume's gradient magnitude.
+pub const GRADIENT: &str = "gradient";
+
+/// The field `spec` names in `scene`: a point array of that name, else `gradient` for the
+/// gradient magnitude, else a named field (a mesh array, or a volume path for grids).
+pub fn color_field(spec: &str, scene: &AnyScene) -> ColorField {
+    let is_array = scene.data().field_names().contains(&spec);
+    if spec == GRADIENT && !(is_array && matches!(scene, AnyScene::Tet(_))) {
+        ColorField::Gradient
+    } else {
+        ColorField::Field(spec.to_owned())
+    }
+}
+
+/// `viridis`, `magma`, `coolwarm` or `grey`.
+pub fn parse_colormap(s: &str) -> Result<Colormap, String> {
+    Colormap::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = Colormap::ALL.iter().map(|c| c.name()).collect();
+        format!("`{s}`: unknown colormap (available: {})", names.join(", "))
+    })
+}
+
+/// `MIN,MAX`: finite, `MIN < MAX`.
+pub fn parse_color_range(s: &str) -> Result<[f32; 2], String> {
+    let bad = || format!("`{s}`: expected MIN,MAX with finite MIN < MAX, such as -1,2.5");
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [lo, hi] = parts[..] else {
+        return Err(bad());
+    };
+    match (lo.parse::<f32>(), hi.parse::<f32>()) {
+        (Ok(lo), Ok(hi)) if lo.is_finite() && hi.is_finite() && lo < hi => Ok([lo, hi]),
+        _ => Err(bad()),
     }
 }
 
@@ -259,6 +334,7 @@ pub fn surfaces_for(specs: &[IsoSpec], scene: &AnyScene) -> anyhow::Result<Vec<S
             color: s.color.unwrap_or(PALETTE[i % PALETTE.len()]),
             opacity: s.opacity,
             visible: true,
+            color_by: None,
         })
         .collect())
 }
@@ -311,6 +387,7 @@ pub fn render_grid(
     let v = RenderVisitor {
         camera,
         settings,
+        colorings: &[],
         cancel,
     };
     if dda {
@@ -525,7 +602,12 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         );
     }
     let (camera, settings) = a.view_of(&scene, args.stats)?;
-    let Rendered { frame, ooc_level } = render_scene(&scene, &camera, &settings, level_timeout)?;
+    let Rendered {
+        mut frame,
+        ooc_level,
+    } = render_scene(&scene, &camera, &settings, level_timeout)?;
+    let bars = scene.scalar_bars(&settings);
+    crate::scalar_bar::composite(&mut frame.rgba8, frame.width, frame.height, &bars);
     // Both outputs are complete before either is renamed into place: a failed depth map
     // leaves no image either.
     let image = crate::output::rgba_image_bytes(&frame.rgba8, frame.width, frame.height, format)?;

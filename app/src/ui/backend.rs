@@ -93,6 +93,9 @@ pub struct RenderedImage {
     pub rays: u64,
     /// Out-of-core: the finest level (0 = coarsest) this frame reached.
     pub lod_level: Option<usize>,
+    /// The scalar bars of the frame's coloured surfaces (the viewer's overlay; composited
+    /// into screenshots).
+    pub scalar_bars: Vec<crate::coloring::ScalarBar>,
 }
 
 /// Out-of-core loading progress (a level/progress indicator), as the scene reports it.
@@ -168,6 +171,19 @@ pub trait PreparedScene: Send + Sync {
             path.display()
         ))
     }
+
+    /// Grids: opens `path` as a volume on the same grid to colour surfaces by and returns
+    /// the name to colour by and the updated list of named colour fields. Call from a job.
+    fn add_color_volume(
+        &self,
+        path: &Path,
+        _control: &JobControl,
+    ) -> Result<(String, Vec<String>), String> {
+        Err(format!(
+            "{}: only volumes can be coloured by another volume",
+            path.display()
+        ))
+    }
 }
 
 /// What kind of data is shown.
@@ -217,6 +233,10 @@ pub struct LoadedData {
     /// Tet meshes: the point arrays that can be drawn, and the drawn one.
     pub fields: Vec<String>,
     pub field: Option<String>,
+    /// The named fields surfaces can be coloured by (a mesh's point arrays, a grid's added
+    /// volumes), and whether the gradient magnitude is one (grids).
+    pub color_fields: Vec<String>,
+    pub gradient_coloring: bool,
     /// Time value of every step (one entry for a single data set).
     pub times: Vec<f64>,
     pub scene: Arc<dyn PreparedScene>,

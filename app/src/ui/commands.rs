@@ -49,6 +49,13 @@ pub enum Command {
     ShowFile(usize),
     /// Tet meshes: draws another point array (a value refit, no rebuild).
     SetField(String),
+    /// The file browser for a volume on the shown grid to colour surface `usize` by.
+    PickColorVolume(usize),
+    /// Opens `path` as a volume on the shown grid and colours surface `surface` by it.
+    AddColorVolume {
+        surface: usize,
+        path: PathBuf,
+    },
     /// The file browser for data files.
     PickFiles,
     /// The file browser for a folder (a DICOM series folder).
@@ -162,6 +169,10 @@ impl ViewerApp {
             }
             Command::PickFiles => self.open_browser(BrowsePurpose::OpenData),
             Command::PickFolder => self.open_browser(BrowsePurpose::OpenFolder),
+            Command::PickColorVolume(i) => self.open_browser(BrowsePurpose::ColorVolume(i)),
+            Command::AddColorVolume { surface, path } => {
+                self.start_color_volume(surface, absolute_path(&path));
+            }
             Command::AddSurface => {
                 if let Some(d) = &self.rt.data {
                     let s = panels::new_surface(&self.state, d);

@@ -78,6 +78,7 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
             color: s.color,
             opacity: s.opacity,
             visible: s.visible,
+            color_by: s.color_by.clone(),
         })
         .collect();
     let mut clips: Vec<ClipRegion> = request
@@ -219,6 +220,10 @@ impl PreparedScene for CorePrepared {
         let settings = settings(request);
         settings.validate().map_err(|e| e.to_string())?;
         let scene = self.scene.read().map_err(poisoned)?;
+        scene
+            .check_colorings(&settings)
+            .map_err(|e| crate::cli::error_text(&e))?;
+        let scalar_bars = scene.scalar_bars(&settings);
         Ok(scene
             .render_with_level(&camera, &settings, cancel)
             .map(|(f, lod_level)| RenderedImage {
@@ -229,6 +234,7 @@ impl PreparedScene for CorePrepared {
                 elapsed: f.elapsed,
                 rays: f.rays.primary,
                 lod_level,
+                scalar_bars,
             }))
     }
 
@@ -243,6 +249,33 @@ impl PreparedScene for CorePrepared {
         scene
             .pick(&camera(request), &settings(request).surfaces, size, pixel, t)
             .map_err(|e| crate::cli::error_text(&e))
+    }
+
+    fn add_color_volume(
+        &self,
+        path: &Path,
+        _control: &JobControl,
+    ) -> Result<(String, Vec<String>), String> {
+        let not_a_grid = || {
+            format!(
+                "{}: only volumes can be coloured by another volume (colour a mesh by one of \
+                 its point arrays)",
+                path.display()
+            )
+        };
+        if !matches!(&*self.scene.read().map_err(poisoned)?, AnyScene::Grid(_)) {
+            return Err(not_a_grid());
+        }
+        // Read without the lock (frames keep rendering), then add under the write lock.
+        let (name, volume) =
+            crate::scene::read_color_volume(path).map_err(|e| crate::cli::error_text(&e))?;
+        let mut s = self.scene.write().map_err(poisoned)?;
+        let AnyScene::Grid(g) = &mut *s else {
+            return Err(not_a_grid());
+        };
+        g.set_color_volume(&name, volume)
+            .map_err(|e| crate::cli::error_text(&e))?;
+        Ok((name, s.color_field_names()))
     }
 
     fn set_step(&self, step: usize, _control: &JobControl) -> Result<StepSwitch, String> {
@@ -355,6 +388,8 @@ pub fn loaded_data(
         histogram_note: info.histogram_note,
         fields: data.field_names().into_iter().map(str::to_owned).collect(),
         field: data.field().map(str::to_owned),
+        color_fields: scene.color_field_names(),
+        gradient_coloring: scene.can_color_by_gradient(),
         times,
         scene: Arc::new(CorePrepared::new(scene)),
     })

@@ -28,6 +28,8 @@ pub enum BrowsePurpose {
     SaveSession,
     /// Where File → Export isosurface… writes its mesh (PLY, STL or OBJ).
     ExportMesh,
+    /// A volume on the shown grid to colour surface `usize` by.
+    ColorVolume(usize),
 }
 
 impl BrowsePurpose {
@@ -38,12 +40,13 @@ impl BrowsePurpose {
             Self::OpenSession => "Open session",
             Self::SaveSession => "Save session",
             Self::ExportMesh => "Export isosurface",
+            Self::ColorVolume(_) => "Colour by another volume on the same grid",
         }
     }
 
     fn action(self) -> &'static str {
         match self {
-            Self::OpenData | Self::OpenSession => "Open",
+            Self::OpenData | Self::OpenSession | Self::ColorVolume(_) => "Open",
             Self::OpenFolder => "Open folder",
             Self::SaveSession => "Save",
             Self::ExportMesh => "Export",
@@ -68,7 +71,7 @@ impl BrowsePurpose {
                     })
             }
             Self::OpenFolder => entry.is_folder,
-            Self::OpenData => true,
+            Self::OpenData | Self::ColorVolume(_) => true,
         }
     }
 
@@ -209,6 +212,10 @@ impl FileBrowser {
             BrowsePurpose::OpenSession => picked.into_iter().next().map(Command::LoadSession),
             BrowsePurpose::SaveSession => self.save_path("json").map(Command::SaveSession),
             BrowsePurpose::ExportMesh => self.save_path("ply").map(Command::ExportMesh),
+            BrowsePurpose::ColorVolume(surface) => picked
+                .into_iter()
+                .next()
+                .map(|path| Command::AddColorVolume { surface, path }),
         }
     }
 

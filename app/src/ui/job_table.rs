@@ -95,6 +95,9 @@ pub struct JobTable {
     pub prefetch: Slot<usize, Result<(), String>>,
     /// A mesh's point-array switch (a value refit holding the scene's write lock).
     pub field: Slot<String, Result<ValueInfo, String>>,
+    /// Opening a volume to colour a surface by (the meta is the surface's index): the name
+    /// to colour by and the colour fields now available.
+    pub color_volume: Slot<usize, Result<(String, Vec<String>), String>>,
     pub render: Slot<RenderTicket, Result<Option<RenderedImage>, String>>,
     /// A question asked off the UI thread (listing a DICOM input's series), answering with
     /// the command to run.
@@ -122,6 +125,10 @@ pub enum Finished {
     FieldSwitched {
         name: String,
         result: Result<Result<ValueInfo, String>, String>,
+    },
+    ColorVolumeAdded {
+        surface: usize,
+        result: Result<Result<(String, Vec<String>), String>, String>,
     },
     StepSwitched {
         step: usize,
@@ -156,6 +163,9 @@ impl JobTable {
         }
         if let Some((step, result)) = self.step.take_finished() {
             return Some(Finished::StepSwitched { step, result });
+        }
+        if let Some((surface, result)) = self.color_volume.take_finished() {
+            return Some(Finished::ColorVolumeAdded { surface, result });
         }
         if let Some((step, result)) = self.prefetch.take_finished() {
             let ok = matches!(result, Ok(Ok(())));
@@ -193,6 +203,7 @@ impl JobTable {
         self.load.is_running()
             || self.step.is_running()
             || self.field.is_running()
+            || self.color_volume.is_running()
             || self.render.is_running()
             || self.screenshot.is_running()
             || self.movie.is_running()
@@ -221,6 +232,7 @@ impl JobTable {
             row(&self.step),
             row(&self.prefetch),
             row(&self.field),
+            row(&self.color_volume),
             row(&self.screenshot),
             row(&self.movie),
             row(&self.export),

@@ -18,6 +18,8 @@ use super::state::{
     ClipBoxState, ClipPlaneState, IntersectorChoice, KeepSide, RawLayoutState, SurfaceState,
     ViewerState,
 };
+use crate::coloring::ScalarBar;
+use volume_core::render::{ColorBy, ColorField, Colormap};
 
 /// UI preferences kept across runs (eframe storage), not part of a session.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -330,12 +332,15 @@ pub fn histogram_ui(
     response.on_hover_text("drag to move the nearest isovalue")
 }
 
-/// Add/remove surfaces; value slider over the histogram, exact entry, color, opacity, visibility.
+/// Add/remove surfaces; value slider over the histogram, exact entry, color, opacity,
+/// visibility, colouring by another field. `shown_bars` are the scalar bars of the frame on
+/// screen (the data range a colouring's fixed range starts from).
 pub fn isosurface_ui(
     ui: &mut Ui,
     state: &mut ViewerState,
     data: Option<&LoadedData>,
     log_histogram: &mut bool,
+    shown_bars: &[ScalarBar],
     commands: &mut Vec<Command>,
 ) {
     let Some(data) = data else {
@@ -395,6 +400,7 @@ pub fn isosurface_ui(
                 color_button(ui, "Color", &mut s.color);
             });
             ui.add(slider(&mut s.opacity, 0.0..=1.0).text(format!("Opacity {}", i + 1)));
+            color_by_ui(ui, i, s, data, shown_bars, commands);
         });
     }
     if let Some(i) = remove {
@@ -403,6 +409,98 @@ pub fn isosurface_ui(
     ui.separator();
     if ui.button("Add isosurface").clicked() {
         commands.push(Command::AddSurface);
+    }
+}
+
+/// Surface `i`'s colouring: "Colour by" solid, a point array or added volume, the gradient
+/// magnitude or another volume (the file browser); its colormap, range (the data range, or
+/// fixed minimum and maximum applied when an edit ends) and scalar bar.
+fn color_by_ui(
+    ui: &mut Ui,
+    i: usize,
+    s: &mut SurfaceState,
+    data: &LoadedData,
+    shown_bars: &[ScalarBar],
+    commands: &mut Vec<Command>,
+) {
+    let n = i + 1;
+    let current = s.color_by.as_ref().map(|c| c.field.clone());
+    let mut choice: Option<Option<ColorField>> = None;
+    egui::ComboBox::from_label(format!("Colour by {n}"))
+        .selected_text(current.as_ref().map_or("solid", ColorField::label))
+        .show_ui(ui, |ui| {
+            if ui.selectable_label(current.is_none(), "solid").clicked() {
+                choice = Some(None);
+            }
+            let mut options: Vec<ColorField> = data
+                .color_fields
+                .iter()
+                .map(|f| ColorField::Field(f.clone()))
+                .collect();
+            if data.gradient_coloring {
+                options.push(ColorField::Gradient);
+            }
+            for f in options {
+                if ui
+                    .selectable_label(current.as_ref() == Some(&f), f.label())
+                    .clicked()
+                {
+                    choice = Some(Some(f));
+                }
+            }
+            if data.gradient_coloring && ui.selectable_label(false, "other volume…").clicked() {
+                commands.push(Command::PickColorVolume(i));
+            }
+        });
+    if let Some(new) = choice {
+        s.color_by = new.map(|field| match s.color_by.take() {
+            Some(mut c) => {
+                if c.field != field {
+                    c.range = None;
+                }
+                c.field = field;
+                c
+            }
+            None => ColorBy::new(field),
+        });
+    }
+    let Some(c) = &mut s.color_by else {
+        return;
+    };
+    ui.horizontal(|ui| {
+        egui::ComboBox::from_label(format!("Colormap {n}"))
+            .selected_text(c.colormap.name())
+            .show_ui(ui, |ui| {
+                for map in Colormap::ALL {
+                    ui.selectable_value(&mut c.colormap, map, map.name());
+                }
+            });
+        ui.checkbox(&mut c.scalar_bar, format!("Scalar bar {n}"));
+    });
+    let mut data_range = c.range.is_none();
+    ui.checkbox(&mut data_range, format!("Data range {n}"));
+    if data_range {
+        c.range = None;
+        return;
+    }
+    // A fixed range starts from the range on screen.
+    let label = c.field.label();
+    let [mut lo, mut hi] = c.range.unwrap_or_else(|| {
+        shown_bars
+            .iter()
+            .find(|b| label.ends_with(b.label.as_str()))
+            .map_or([0.0, 1.0], |b| b.range)
+    });
+    ui.horizontal(|ui| {
+        let speed = (f64::from(hi - lo).abs() / 1000.0).max(1e-9);
+        labelled_drag(ui, &format!("Min {n}"), number(&mut lo).speed(speed));
+        labelled_drag(ui, &format!("Max {n}"), number(&mut hi).speed(speed));
+    });
+    // Only a usable range is taken (min < max, finite); anything else keeps the last one.
+    if lo.is_finite() && hi.is_finite() && lo < hi {
+        c.range = Some([lo, hi]);
+    } else if c.range.is_none() {
+        c.range = Some([0.0, 1.0]);
     }
 }
 
@@ -747,11 +845,17 @@ impl ViewerApp {
             egui::CollapsingHeader::new("Isosurfaces")
                 .default_open(true)
                 .show(ui, |ui| {
+                    let bars = self
+                        .rt
+                        .shown
+                        .as_ref()
+                        .map_or(&[][..], |s| &s.scalar_bars[..]);
                     isosurface_ui(
                         ui,
                         &mut self.state,
                         self.rt.data.as_ref(),
                         &mut self.prefs.log_histogram,
+                        bars,
                         &mut self.commands,
                     );
                 });

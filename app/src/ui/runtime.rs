@@ -21,6 +21,8 @@ pub struct ShownFrame {
     pub size: [u32; 2],
     /// Out-of-core: the finest level the frame reached.
     pub lod_level: Option<usize>,
+    /// The scalar bars of the frame's coloured surfaces (drawn over it).
+    pub scalar_bars: Vec<crate::coloring::ScalarBar>,
     /// The frame's depth (ray parameter per pixel, infinite where nothing was hit), which
     /// picking reads; empty when the backend keeps none.
     pub depth: Vec<f32>,

@@ -76,6 +76,25 @@ impl ViewerApp {
                     self.notify(e, true);
                 }
             },
+            Finished::ColorVolumeAdded { surface, result } => match result.and_then(|r| r) {
+                Ok((name, fields)) => {
+                    if let Some(d) = self.rt.data.as_mut() {
+                        d.color_fields = fields;
+                    }
+                    if let Some(s) = self.state.surfaces.get_mut(surface) {
+                        let field = volume_core::render::ColorField::Field(name);
+                        match &mut s.color_by {
+                            Some(c) => {
+                                c.field = field;
+                                c.range = None;
+                            }
+                            None => s.color_by = Some(volume_core::render::ColorBy::new(field)),
+                        }
+                    }
+                    self.load_missing_color_volumes();
+                }
+                Err(e) => self.notify(format!("colour by another volume: {e}"), true),
+            },
             Finished::FieldSwitched { name, result } => match result.and_then(|r| r) {
                 Ok(info) => self.field_switched(name, info),
                 Err(e) => {
@@ -209,10 +228,12 @@ impl ViewerApp {
         self.rt.lod = data.scene.lod_status();
         // An untouched default view (not a session's, not the user's) frames the new data.
         let untouched = self.state.camera == CameraState::default();
+        self.jobs.color_volume.cancel();
         self.rt.data = Some(data);
         if untouched {
             self.state.camera = self.framed_view();
         }
+        self.load_missing_color_volumes();
         self.stats.datasets_loaded += 1;
         self.stats.scenes_built += 1;
     }
@@ -252,6 +273,7 @@ impl ViewerApp {
                         size: [width, height],
                         lod_level: img.lod_level,
                         depth: img.depth,
+                        scalar_bars: img.scalar_bars,
                     });
                     self.rt.shown_times.push_back(Instant::now());
 
@@ -364,6 +386,49 @@ impl ViewerApp {
         self.rt.pending_render = None;
     }
 
+    /// Opens `path` as a volume on the shown grid in a job, then colours surface `surface`
+    /// by it.
+    pub(super) fn start_color_volume(&mut self, surface: usize, path: PathBuf) {
+        let Some(d) = &self.rt.data else { return };
+        if self.jobs.color_volume.is_running() {
+            self.notify(
+                "colour by another volume: one is already being opened",
+                true,
+            );
+            return;
+        }
+        let scene = Arc::clone(&d.scene);
+        self.stop_render_for_refit();
+        let job = Job::spawn(
+            format!("opening {} to colour by", path.display()),
+            self.repaint_fn(),
+            move |control| scene.add_color_volume(&path, control),
+        );
+        self.jobs.color_volume.start(surface, job);
+    }
+
+    /// Grids: opens (one at a time) the volumes a restored session colours surfaces by that
+    /// the scene does not hold yet.
+    pub(super) fn load_missing_color_volumes(&mut self) {
+        let Some(d) = &self.rt.data else { return };
+        if !d.gradient_coloring || self.jobs.color_volume.is_running() {
+            return;
+        }
+        let missing = self.state.surfaces.iter().enumerate().find_map(|(i, s)| {
+            match s.color_by.as_ref().map(|c| &c.field) {
+                Some(volume_core::render::ColorField::Field(name))
+                    if !d.color_fields.contains(name) =>
+                {
+                    Some((i, PathBuf::from(name)))
+                }
+                _ => None,
+            }
+        });
+        if let Some((i, path)) = missing {
+            self.start_color_volume(i, path);
+        }
+    }
+
     /// Draws another point array of a mesh (a value refit in a job; renders wait for it).
     pub(super) fn start_field_switch(&mut self, name: String) {
         let Some(d) = &self.rt.data else { return };
@@ -414,6 +479,8 @@ impl ViewerApp {
             if img.rgba8.len() != img.width as usize * img.height as usize * 4 {
                 return Err("the renderer returned a wrong-sized image".to_string());
             }
+            let mut img = img;
+            crate::scalar_bar::composite(&mut img.rgba8, img.width, img.height, &img.scalar_bars);
             crate::output::save_rgba_image(
                 &path,
                 &img.rgba8,

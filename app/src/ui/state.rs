@@ -188,13 +188,17 @@ impl CameraState {
 }
 
 /// One isosurface.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceState {
     pub isovalue: f64,
     /// Linear RGB in [0, 1].
     pub color: [f32; 3],
     pub opacity: f32,
     pub visible: bool,
+    /// Colour by another field through a colormap (`None`: the flat `color`); sessions
+    /// saved before colouring existed load as `None`.
+    #[serde(default)]
+    pub color_by: Option<volume_core::render::ColorBy>,
 }
 
 /// Colors given to new surfaces in turn.
@@ -214,6 +218,7 @@ impl SurfaceState {
             color: SURFACE_PALETTE[index % SURFACE_PALETTE.len()],
             opacity: 1.0,
             visible: true,
+            color_by: None,
         }
     }
 }
@@ -420,6 +425,24 @@ impl Default for RawLayoutState {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sessions_without_colouring_load_and_colourings_round_trip() {
+        // A surface as sessions saved it before colouring existed.
+        let old = r#"{"surfaces":[{"isovalue":0.5,"color":[1.0,0.5,0.0],"opacity":1.0,
+            "visible":true}]}"#;
+        let s = ViewerState::from_json(old).unwrap();
+        assert_eq!(s.surfaces.len(), 1);
+        assert_eq!(s.surfaces[0].color_by, None);
+        let mut s = s;
+        s.surfaces[0].color_by = Some(volume_core::render::ColorBy {
+            colormap: volume_core::render::Colormap::Coolwarm,
+            range: Some([-1.0, 2.5]),
+            scalar_bar: false,
+            ..volume_core::render::ColorBy::new(volume_core::render::ColorField::Gradient)
+        });
+        assert_eq!(ViewerState::from_json(&s.to_json()).unwrap(), s);
+    }
 
     #[test]
     fn session_round_trips_through_json() {

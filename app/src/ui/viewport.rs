@@ -1,6 +1,7 @@
 //! The viewport: the frame on screen (or what is being prepared), orbit/pan/zoom by mouse
 //! and keys (which edit the camera state directly and mark the view as moving, so frames
-//! are coarse until it settles), the enabled clip boxes' outlines, and the orientation marker.
+//! are coarse until it settles), the enabled clip boxes' outlines, the orientation marker, and
+//! the scalar bars of coloured surfaces (the frame's, as screenshots composite them).
 
 use std::time::Instant;
 
@@ -9,6 +10,9 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Vec2};
 use super::app::ViewerApp;
 use super::camera::{CameraPose, box_edges, clip_box_world};
 use super::scheduler::MAX_RENDER_SIDE;
+
+/// Bands a scalar bar's colormap is drawn in.
+const STRIPS: usize = 64;
 
 impl ViewerApp {
     pub(super) fn viewport_ui(&mut self, ui: &mut egui::Ui) {
@@ -53,6 +57,88 @@ impl ViewerApp {
         self.draw_clip_outlines(&painter, rect);
         self.draw_pick_marker(&painter, rect);
         self.draw_orientation_marker(&painter, rect);
+        self.draw_scalar_bars(ui, &painter, rect);
+    }
+
+    /// The shown frame's scalar bars at the right edge: the colormap from max (top) to min,
+    /// ticks at max, middle and min, the field's name above.
+    fn draw_scalar_bars(&self, ui: &egui::Ui, painter: &egui::Painter, rect: Rect) {
+        let Some(shown) = &self.rt.shown else { return };
+        if rect.width() < 120.0 || rect.height() < 120.0 {
+            return;
+        }
+        let font = egui::FontId::proportional(12.0);
+        let white = Color32::WHITE;
+        let (bar_w, pad) = (14.0, 8.0);
+        let bar_h = (rect.height() * 0.5).max(60.0);
+        let top = rect.center().y - bar_h / 2.0;
+        let mut right = rect.right() - pad;
+        for (k, bar) in shown.scalar_bars.iter().enumerate() {
+            let labels = crate::scalar_bar::tick_labels(bar.range);
+            let text_w = labels
+                .iter()
+                .map(|l| {
+                    painter
+                        .layout_no_wrap(l.clone(), font.clone(), white)
+                        .size()
+                        .x
+                })
+                .fold(0.0_f32, f32::max);
+            let title = painter.layout_no_wrap(bar.label.clone(), font.clone(), white);
+            let body_w = bar_w + 6.0 + text_w;
+            let panel_w = body_w.max(title.size().x) + 2.0 * pad;
+            let panel = Rect::from_min_max(
+                Pos2::new(right - panel_w, top - title.size().y - 2.0 * pad),
+                Pos2::new(right, top + bar_h + pad),
+            );
+            painter.rect_filled(panel, 4.0, Color32::from_black_alpha(150));
+            let x0 = panel.left() + pad;
+            painter.galley(Pos2::new(x0, panel.top() + pad * 0.5), title, white);
+            for i in 0..STRIPS {
+                let t = 1.0 - (i as f32 + 0.5) / STRIPS as f32;
+                let c = bar
+                    .colormap
+                    .at(t)
+                    .map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+                let y0 = top + bar_h * i as f32 / STRIPS as f32;
+                let y1 = top + bar_h * (i + 1) as f32 / STRIPS as f32;
+                painter.rect_filled(
+                    Rect::from_min_max(Pos2::new(x0, y0), Pos2::new(x0 + bar_w, y1 + 0.5)),
+                    0.0,
+                    Color32::from_rgb(c[0], c[1], c[2]),
+                );
+            }
+            let bar_rect = Rect::from_min_size(Pos2::new(x0, top), Vec2::new(bar_w, bar_h));
+            painter.rect_stroke(
+                bar_rect,
+                0.0,
+                Stroke::new(1.0, white),
+                egui::StrokeKind::Outside,
+            );
+            for (j, label) in labels.iter().enumerate() {
+                let y = top + bar_h * j as f32 / 2.0;
+                painter.line_segment(
+                    [Pos2::new(x0 + bar_w, y), Pos2::new(x0 + bar_w + 4.0, y)],
+                    Stroke::new(1.0, white),
+                );
+                painter.text(
+                    Pos2::new(x0 + bar_w + 6.0, y),
+                    egui::Align2::LEFT_CENTER,
+                    label,
+                    font.clone(),
+                    white,
+                );
+            }
+            // Screen readers and tests find the bar by its name.
+            let name = format!("Scalar bar {}: {} to {}", bar.label, labels[2], labels[0]);
+            ui.interact(
+                panel,
+                ui.make_persistent_id(("scalar_bar", k)),
+                Sense::hover(),
+            )
+            .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, &name));
+            right = panel.left() - pad;
+        }
     }
 
     /// The orientation marker in the bottom-left corner, for the camera on screen.

@@ -237,10 +237,21 @@ class Scene:
         background: Optional[_Color] = None,
         supersample: int = 1,
         level_timeout: float = 120.0,
+        color_by: Optional[str] = None,
+        colormap: Optional[str] = None,
+        color_range: Optional[Tuple[float, float]] = None,
+        scalar_bar: bool = True,
     ) -> Image:
         """Renders the isosurfaces (default: one at the middle of the value range), as
         ``isoscope render`` does with the same settings; ``supersample=k`` averages k×k
-        rays per pixel (anti-aliasing, 1 to 8)."""
+        rays per pixel (anti-aliasing, 1 to 8).
+
+        ``color_by`` colours every surface by another field through ``colormap``
+        (``"viridis"`` (default), ``"magma"``, ``"coolwarm"``, ``"grey"``): a mesh point
+        array, ``"gradient"`` (a volume's gradient magnitude) or the path of another volume
+        with the same dims and geometry. ``color_range=(min, max)`` fixes the values at the
+        colormap's ends (default: the field's data range; values outside are clamped);
+        ``scalar_bar=False`` leaves the scalar bar out of the image."""
     def export(
         self,
         path: _Path,
