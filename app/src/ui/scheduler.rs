@@ -526,6 +526,8 @@ impl ViewerApp {
             })
         });
         self.jobs.pick.start((), job);
+    }
+
     /// Writes the visible surfaces with the current clips and time step as a mesh file
     /// (PLY, STL or OBJ by `path`'s extension) in a job with progress and cancel.
     pub(super) fn start_export(&mut self, path: PathBuf) {
