@@ -12,6 +12,10 @@
 #   docs/images/screenshot-tet.png   a generated tet mesh (`isoscope generate tet-ball`)
 #                                    restored from a session: point array "gaussians", an
 #                                    opaque isosurface inside a transparent one
+#   docs/images/picking.png          the embedded sample clicked in the middle of the view:
+#                                    the pick panel and the marker
+#   docs/images/color-by.png         the tet mesh's "gaussians" isosurface coloured by its
+#                                    "distance" array (coolwarm) with the scalar bar
 #   docs/images/dicom-ct.png         a CT-like DICOM series written by pydicom
 #                                    (data-samples/scripts/make_dicom_ct.py; needs PYTHON
 #                                    with numpy and pydicom, skipped without), skin and bone
@@ -21,6 +25,8 @@
 #   ISOSCOPE_BIN  the binary to run (default: target/debug/isoscope, built if missing;
 #                 the dev profile is optimized, see the root Cargo.toml)
 #   WAIT_SECONDS  how long to let the app load and render before the shot (default 25)
+#   CLICK_AT      "X Y": screen position to click after the wait (then 8 s more), for
+#                 picking
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -69,6 +75,11 @@ shot() {
         cat "$work/app.log" >&2
         exit 1
     fi
+    if [[ -n "${CLICK_AT:-}" ]]; then
+        # shellcheck disable=SC2086
+        DISPLAY="$display" xdotool mousemove $CLICK_AT click 1
+        sleep 8
+    fi
     mkdir -p "$(dirname "$out")"
     DISPLAY="$display" import -window root "$out"
     kill "$app" 2>/dev/null || true
@@ -105,6 +116,24 @@ cat >"$work/ball-session.json" <<JSON
 }
 JSON
 shot docs/images/screenshot-tet.png "$work/ball-session.json"
+# Colour by field: the "gaussians" isosurface of the same mesh coloured by its "distance"
+# array through coolwarm, with the scalar bar over the view.
+cat >"$work/color-session.json" <<JSON
+{
+  "version": 1,
+  "files": ["$work/ball.vtu"],
+  "field": "gaussians",
+  "camera": {"azimuth_deg": 40.0, "elevation_deg": 20.0, "zoom": 0.9},
+  "surfaces": [
+    {"isovalue": 0.45, "color": [0.90, 0.75, 0.55], "opacity": 1.0, "visible": true,
+     "color_by": {"field": {"field": "distance"}, "colormap": "coolwarm"}}
+  ]
+}
+JSON
+shot docs/images/color-by.png "$work/color-session.json"
+# Picking: the embedded sample clicked in the middle of its view (the viewport's centre on
+# the 1280×800 screen).
+CLICK_AT="${PICK_AT:-760 420}" shot docs/images/picking.png
 # A DICOM CT: the series is written by pydicom, opened as a folder (LPS world, HU values);
 # the session sets a front-right view (LPS: anterior is −y, right is −x) and two surfaces.
 python="${PYTHON:-python3}"

@@ -686,7 +686,7 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
     assert!(!h.state().state.render.smooth_normals, "faceted by default");
 
     // Normals: the radio button reaches the renderer.
-    h.get_by_label("Smooth").click();
+    click_in_side_panel(&mut h, "Smooth");
     h.run_steps(2);
     assert!(h.state().state.render.smooth_normals);
     settle(&mut h);
@@ -1437,6 +1437,21 @@ fn integer_values_read_as_integers_and_the_data_fills_the_view() {
     let framed = isoscope::ui::camera::framed_view(&app.data().unwrap().bounds, app.viewport_px());
     assert_eq!(app.state.camera, framed);
     assert_ne!(framed.zoom, 1.0);
+}
+
+/// Clicks the widget labelled `label` in the side panel, scrolling the panel down first
+/// while the widget lies below the panel's visible part (the status and time bars end it).
+fn click_in_side_panel(h: &mut Harness<'_, ViewerApp>, label: &str) {
+    let bottom = h.state().viewport_rect().bottom();
+    for _ in 0..20 {
+        if h.get_by_label(label).rect().bottom() <= bottom {
+            break;
+        }
+        h.get_by_label(label).scroll_down();
+        // Let the scroll animation finish before clicking where the widget now is.
+        h.run_steps(30);
+    }
+    h.get_by_label(label).click();
 }
 
 /// Clicks the viewport at `at` (fractions of its size from the top left).
