@@ -117,16 +117,16 @@ cat >"$work/ball-session.json" <<JSON
 JSON
 shot docs/images/screenshot-tet.png "$work/ball-session.json"
 # Colour by field: the "gaussians" isosurface of the same mesh coloured by its "distance"
-# array through coolwarm, with the scalar bar over the view.
+# array through coolwarm over 0.3–0.9, with the scalar bar over the view.
 cat >"$work/color-session.json" <<JSON
 {
   "version": 1,
   "files": ["$work/ball.vtu"],
   "field": "gaussians",
-  "camera": {"azimuth_deg": 40.0, "elevation_deg": 20.0, "zoom": 0.9},
+  "camera": {"azimuth_deg": 40.0, "elevation_deg": 20.0, "zoom": 0.62},
   "surfaces": [
-    {"isovalue": 0.45, "color": [0.90, 0.75, 0.55], "opacity": 1.0, "visible": true,
-     "color_by": {"field": {"field": "distance"}, "colormap": "coolwarm"}}
+    {"isovalue": 0.25, "color": [0.90, 0.75, 0.55], "opacity": 1.0, "visible": true,
+     "color_by": {"field": {"field": "distance"}, "colormap": "coolwarm", "range": [0.3, 0.9]}}
   ]
 }
 JSON
