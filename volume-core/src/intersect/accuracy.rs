@@ -926,13 +926,103 @@ mod far_hit_probe {
         assert_eq!(exact_disagreements(&s, 127.5, &rays), Vec::<usize>::new());
     }
 
-    /// Every pixel at 1024² on ML 128³ u8: exact agrees with the reference (no missed,
-    /// false or far hits). ML 256³ f32 at 1024² is scored by `isoscope accuracy`
-    /// (docs/accuracy.md) and `app/tests/cli_accuracy.rs`.
+    /// The first hits of every pixel of a `size²` frame as the renderer finds them (16×16
+    /// tiles in Morton order, traced as packets of up to 16 rays in 8-wide lanes through the
+    /// kd-tree, each ray cut to the volume's bounds first), from the frame's depth buffer:
+    /// the path a picture takes, which [`trace`] (one ray at a time from `t = 0`, what
+    /// [`compare`] and `isoscope bench` score) does not run.
+    fn rendered<T: Voxel>(scene: &GridScene<T>, iso: f32, size: u32, rays: &[Ray]) -> Traced {
+        use crate::render::{RenderSettings, Surface, render};
+        let mut s = scene.clone();
+        s.set_intersector(Intersector::Exact);
+        let cam = Camera::orbit(&s.world_bounds(), 30.0, 20.0, 40.0);
+        let settings = RenderSettings {
+            width: size,
+            height: size,
+            surfaces: vec![Surface::new(iso, [1.0; 3])],
+            ..RenderSettings::default()
+        };
+        let frame = render(
+            &s,
+            &cam,
+            &settings,
+            &std::sync::atomic::AtomicBool::new(false),
+        )
+        .expect("not cancelled");
+        assert_eq!(frame.depth.len(), rays.len());
+        let hits = rays
+            .iter()
+            .zip(&frame.depth)
+            .map(|(r, &d)| {
+                // Depth is the hit's `t` in the ray's units (row-major, as `every_pixel`);
+                // cells as `trace_typed` converts it.
+                let speed = s.frame().local_dir(r.dir).length();
+                d.is_finite().then(|| RayHit {
+                    t_cells: f64::from(d) * f64::from(speed),
+                    surface: 0,
+                })
+            })
+            .collect();
+        Traced {
+            intersector: Intersector::Exact,
+            hits,
+            seconds: 0.0,
+        }
+    }
+
+    /// Scores exact (Listing 7.1 made exact, seed 004 §7.2.2) on every pixel of a `size²`
+    /// frame against the `f64` reference (one ray at a time through the kd-tree): the
+    /// single-ray traversal and the renderer's packets must both have no missed, false or
+    /// far hits ([`FAR_HIT_CELLS`], as [`score`] counts them).
+    fn assert_exact_on_every_pixel<T: Voxel>(scene: &GridScene<T>, iso: f32, size: u32) {
+        let rays = orbit_rays(scene, size, every_pixel(size));
+        let truth = trace_typed(scene, &rays, &[iso], Intersector::Reference);
+        let single = trace_typed(scene, &rays, &[iso], Intersector::Exact);
+        let packets = rendered(scene, iso, size, &rays);
+        let mut failures = Vec::new();
+        for (path, got) in [("single ray", single), ("rendered packets", packets)] {
+            let (r, outcomes) = score(&got, &truth);
+            assert!(r.reference_hits > 0, "{path}: no surface in the frame");
+            if (r.missed, r.false_hits, r.far_hits) == (0, 0, 0) {
+                continue;
+            }
+            let pixels: Vec<(usize, usize)> = outcomes
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| match o {
+                    RayOutcome::Both { abs_dt_cells, .. } => *abs_dt_cells > FAR_HIT_CELLS,
+                    RayOutcome::Missed | RayOutcome::False => true,
+                    RayOutcome::NoHit => false,
+                })
+                .map(|(k, _)| (k % size as usize, k / size as usize))
+                .take(10)
+                .collect();
+            failures.push(format!(
+                "{path}: {} missed, {} false, {} far, max |dt| {} cells, pixels {pixels:?}",
+                r.missed, r.false_hits, r.far_hits, r.max_abs_dt_cells
+            ));
+        }
+        assert!(
+            failures.is_empty(),
+            "{} iso {iso} at {size}²: {failures:#?}",
+            T::TYPE.name()
+        );
+    }
+
+    /// Every pixel at 1024² on ML 128³ u8 (the stored isovalue 127.5, and 0.5 where the
+    /// surface runs along cells with corners 0 and 1): exact agrees with the reference.
     #[test]
     fn ml128_u8_exact_is_exact_on_every_pixel_at_1024() {
         let s = ml(128, |x| (255.0 * x).round() as u8);
-        let rays = orbit_rays(&s, 1024, every_pixel(1024));
-        assert_eq!(exact_disagreements(&s, 127.5, &rays), Vec::<usize>::new());
+        assert_exact_on_every_pixel(&s, 127.5, 1024);
+        assert_exact_on_every_pixel(&s, 0.5, 1024);
+    }
+
+    /// Every pixel at 1024² on ML 256³ f32 at the classic isovalue 0.5 (the far hits of
+    /// 12.8 cells of the first full-resolution scoring were on this frame).
+    #[test]
+    fn ml256_f32_exact_is_exact_on_every_pixel_at_1024() {
+        let s = ml(256, |x| x as f32);
+        assert_exact_on_every_pixel(&s, 0.5, 1024);
     }
 }
