@@ -32,6 +32,7 @@ pub enum Colormap {
 }
 
 /// viridis at `i / 255` (see the module docs for the source).
+#[allow(clippy::unreadable_literal)] // the published values, digit for digit
 const VIRIDIS: [(u8, [f32; 3]); 17] = [
     (0, [0.267004, 0.004874, 0.329415]),
     (16, [0.282327, 0.094955, 0.417331]),
@@ -53,6 +54,7 @@ const VIRIDIS: [(u8, [f32; 3]); 17] = [
 ];
 
 /// magma at `i / 255` (see the module docs for the source).
+#[allow(clippy::unreadable_literal)] // the published values, digit for digit
 const MAGMA: [(u8, [f32; 3]); 17] = [
     (0, [0.001462, 0.000466, 0.013866]),
     (16, [0.039608, 0.031090, 0.133515]),

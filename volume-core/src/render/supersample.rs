@@ -23,7 +23,7 @@ pub(crate) fn downsample_into(fine: &Frame, k: u32, coarse: &mut Frame) {
     coarse.rgba8.resize(w_us * h as usize * 4, 0);
     coarse.depth.clear();
     coarse.depth.resize(w_us * h as usize, f32::INFINITY);
-    let samples = (k * k) as u32;
+    let samples = k * k;
     for y in 0..h as usize {
         for x in 0..w_us {
             let mut sum = [0u32; 4];
