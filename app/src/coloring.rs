@@ -166,14 +166,13 @@ impl AnyScene {
                     (v.sampler.field(), v.value_range)
                 }
             };
-        let range = match color_by.range {
-            Some(r) => r,
-            None => {
-                let Some((lo, hi)) = data_range else {
-                    bail!("{path}: {label} has no finite value to colour by");
-                };
-                [lo as f32, hi as f32]
-            }
+        let range = if let Some(r) = color_by.range {
+            r
+        } else {
+            let Some((lo, hi)) = data_range else {
+                bail!("{path}: {label} has no finite value to colour by");
+            };
+            [lo as f32, hi as f32]
         };
         Ok((field, range))
     }

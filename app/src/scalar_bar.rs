@@ -467,7 +467,7 @@ mod tests {
         assert_eq!(tick_label(1.5), "1.5");
         assert_eq!(tick_label(-2.0), "-2");
         assert_eq!(tick_label(1234.5678), "1235");
-        assert_eq!(tick_label(0.012345), "0.01235");
+        assert_eq!(tick_label(0.012_345), "0.01235");
         assert_eq!(tick_label(1.5e-7), "1.5e-7");
         assert_eq!(tick_label(-2.5e9), "-2.5e9");
         assert_eq!(tick_labels([-1.0, 3.0]), ["3", "1", "-1"].map(String::from));

@@ -1146,8 +1146,18 @@ fn supersampling_is_the_box_filter_of_the_larger_render() {
             blended += usize::from(block.iter().any(|&v| v != block[0]));
         }
     }
-    assert!(blended > 10, "the silhouette is anti-aliased: {blended} mixed pixels");
-    let e = fails(&["render", s(&vol), "--supersample", "9", "-o", s(&dir.path().join("x.png"))]);
+    assert!(
+        blended > 10,
+        "the silhouette is anti-aliased: {blended} mixed pixels"
+    );
+    let e = fails(&[
+        "render",
+        s(&vol),
+        "--supersample",
+        "9",
+        "-o",
+        s(&dir.path().join("x.png")),
+    ]);
     assert!(e.contains("supersampling 9 must be between 1 and 8"), "{e}");
 }
 

@@ -1484,17 +1484,32 @@ fn a_click_on_the_image_probes_the_surface_there() {
     step_until(&mut h, "the pick", |a| a.pick().is_some());
     let app = h.state();
     let shown = app.pick().unwrap();
-    let pick = shown.pick.expect("the middle of the view shows the surface");
+    let pick = shown
+        .pick
+        .expect("the middle of the view shows the surface");
     let probe = pick.probe.expect("the hit lies in the data");
     let iso = app.state.surfaces[0].isovalue;
     assert_eq!(pick.surface, Some(0));
-    assert!((probe.value - iso).abs() < 1e-4, "{} vs iso {iso}", probe.value);
-    assert!(pick.world.iter().all(|c| c.abs() <= 1.0 + 1e-6), "{:?}", pick.world);
+    assert!(
+        (probe.value - iso).abs() < 1e-4,
+        "{} vs iso {iso}",
+        probe.value
+    );
+    assert!(
+        pick.world.iter().all(|c| c.abs() <= 1.0 + 1e-6),
+        "{:?}",
+        pick.world
+    );
     // Trilinear on 64³ samples of a function of frequency 6: near, not on, its level set.
     assert!((ml(pick.world) - iso).abs() < 0.1, "{}", ml(pick.world));
     assert!(shown.text.contains("surface 0"), "{}", shown.text);
     h.get_by_label("Copy");
-    let line = shown.text.split("; ").find(|l| l.starts_with("value")).unwrap().to_string();
+    let line = shown
+        .text
+        .split("; ")
+        .find(|l| l.starts_with("value"))
+        .unwrap()
+        .to_string();
     h.get_by_label(&line);
     // A click on the background finds no surface.
     click_viewport(&mut h, [0.02, 0.02]);
@@ -1537,7 +1552,11 @@ fn undo_and_redo_step_through_surface_clip_and_camera_edits() {
     assert!(h.state().state.clip_boxes.is_empty());
     assert_eq!(h.state().state.surfaces[0].isovalue, 0.4);
     undo(&mut h);
-    assert_eq!(h.state().state.surfaces, start.surfaces, "the drag is one step");
+    assert_eq!(
+        h.state().state.surfaces,
+        start.surfaces,
+        "the drag is one step"
+    );
     assert!(!h.state().can_undo());
     for _ in 0..3 {
         h.key_press_modifiers(
@@ -1558,14 +1577,19 @@ fn undo_and_redo_step_through_surface_clip_and_camera_edits() {
 fn the_last_session_comes_back_at_start() {
     use isoscope::ui::panels::{Prefs, ReopenLast};
     let (mut h, _rec) = harness(vec![PathBuf::from("/data/series.test")]);
-    step_until(&mut h, "the series", |a| a.data().is_some_and(|d| d.name == "series.test"));
+    step_until(&mut h, "the series", |a| {
+        a.data().is_some_and(|d| d.name == "series.test")
+    });
     h.state_mut().state.surfaces[0].isovalue = 0.65;
     h.state_mut().state.camera.orbit(25.0, -10.0);
     h.state_mut().push(Command::AddClipBox);
     h.run_steps(2);
     h.state_mut().remember_session();
     let prefs = h.state().prefs.clone();
-    let last = prefs.last_session.clone().expect("a session with files is remembered");
+    let last = prefs
+        .last_session
+        .clone()
+        .expect("a session with files is remembered");
     assert_eq!(last.files, vec![PathBuf::from("/data/series.test")]);
 
     let restored = |a: &ViewerApp| {
@@ -1595,7 +1619,10 @@ fn the_last_session_comes_back_at_start() {
     given.state_mut().start_with_prefs(prefs, true);
     step_until(&mut given, "the series", |a| a.data().is_some());
     given.run_steps(2);
-    assert!(given.query_by_label("Reopen").is_none(), "no offer with files given");
+    assert!(
+        given.query_by_label("Reopen").is_none(),
+        "no offer with files given"
+    );
 }
 
 /// File → Movie… plays a series through (one frame per step, the scene's step switched
@@ -1607,7 +1634,9 @@ fn movies_write_one_frame_per_step_or_orbit_position() {
     use isoscope::ui::movie::MovieSettings;
     let dir = tempfile::tempdir().unwrap();
     let (mut h, rec) = harness(vec![PathBuf::from("/data/series.test")]);
-    step_until(&mut h, "the series", |a| a.data().is_some_and(|d| d.name == "series.test"));
+    step_until(&mut h, "the series", |a| {
+        a.data().is_some_and(|d| d.name == "series.test")
+    });
     settle(&mut h);
     h.state_mut().push(Command::SetStep(2));
     step_until(&mut h, "step 2 on screen", |a| {
@@ -1630,7 +1659,11 @@ fn movies_write_one_frame_per_step_or_orbit_position() {
         assert_eq!((img.width(), img.height()), (40, 30));
     }
     assert!(!frame_path(&time.folder, 4).exists());
-    assert_eq!(rec.log.lock().unwrap().steps, vec![0, 1, 2, 3, 2], "back to step 2");
+    assert_eq!(
+        rec.log.lock().unwrap().steps,
+        vec![0, 1, 2, 3, 2],
+        "back to step 2"
+    );
     settle(&mut h);
     assert_eq!(h.state().shown_frame().unwrap().request.step, 2);
 
@@ -1669,7 +1702,11 @@ fn movies_write_one_frame_per_step_or_orbit_position() {
         Vec3::new(d.x, 0.0, d.z)
     };
     let turned = flat(eyes[5]).angle_between(flat(eyes[0]));
-    assert!((turned.to_degrees() - 75.0).abs() < 0.5, "{}", turned.to_degrees());
+    assert!(
+        (turned.to_degrees() - 75.0).abs() < 0.5,
+        "{}",
+        turned.to_degrees()
+    );
 }
 
 /// File → Export isosurface… writes, through the in-app browser, the visible surface with

@@ -6,6 +6,7 @@
 //! ([`volume_core::extract`]: right-hand normal towards decreasing value), and the STL facet
 //! normal is that unit normal.
 
+use std::fmt::Write as _;
 use std::io::Write;
 use std::path::Path;
 
@@ -117,7 +118,7 @@ fn write_ply(
     normals: Option<&[[f32; 3]]>,
     colors: &[[f32; 3]],
 ) -> std::io::Result<()> {
-    let index = if mesh.positions.len() <= i32::MAX as usize {
+    let index = if i32::try_from(mesh.positions.len()).is_ok() {
         "int"
     } else {
         "uint"
@@ -133,10 +134,11 @@ fn write_ply(
     if !colors.is_empty() {
         header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
     }
-    header.push_str(&format!(
+    let _ = write!(
+        header,
         "element face {}\nproperty list uchar {index} vertex_indices\nend_header\n",
         mesh.triangles.len()
-    ));
+    );
     w.write_all(header.as_bytes())?;
     let rgb: Vec<[u8; 3]> = colors.iter().map(|c| c.map(srgb_byte)).collect();
     for (v, p) in mesh.positions.iter().enumerate() {
@@ -279,9 +281,9 @@ mod tests {
         let normals = mesh.vertex_normals();
         for v in 0..4 {
             let at = body + v * stride;
-            for a in 0..3 {
-                assert_eq!(f32_at(&bytes, at + 4 * a), mesh.positions[v][a]);
-                assert_eq!(f32_at(&bytes, at + 12 + 4 * a), normals[v][a]);
+            for (a, (&p, &n)) in mesh.positions[v].iter().zip(&normals[v]).enumerate() {
+                assert_eq!(f32_at(&bytes, at + 4 * a), p);
+                assert_eq!(f32_at(&bytes, at + 12 + 4 * a), n);
             }
             let rgb = &bytes[at + 24..at + 27];
             let want = colors[mesh.surfaces[v] as usize].map(srgb_byte);
@@ -291,8 +293,8 @@ mod tests {
         for (t, tri) in mesh.triangles.iter().enumerate() {
             let at = faces + t * 13;
             assert_eq!(bytes[at], 3);
-            for k in 0..3 {
-                assert_eq!(u32_at(&bytes, at + 1 + 4 * k), tri[k]);
+            for (k, &corner) in tri.iter().enumerate() {
+                assert_eq!(u32_at(&bytes, at + 1 + 4 * k), corner);
             }
         }
         assert_eq!(bytes.len(), faces + 2 * 13);

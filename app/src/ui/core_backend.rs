@@ -145,7 +145,10 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
 /// larger side is `side` pixels (at least 1).
 pub fn supersample_for(wanted: u32, side: u32) -> u32 {
     let fits = volume_core::render::MAX_IMAGE_SIDE / side.max(1);
-    wanted.min(volume_core::render::supersample::MAX_SUPERSAMPLE).min(fits).max(1)
+    wanted
+        .min(volume_core::render::supersample::MAX_SUPERSAMPLE)
+        .min(fits)
+        .max(1)
 }
 
 /// An opened scene of any kind behind a lock: renders take the read lock, step switches
@@ -247,7 +250,13 @@ impl PreparedScene for CorePrepared {
     ) -> Result<Option<crate::scene::Pick>, String> {
         let scene = self.scene.read().map_err(poisoned)?;
         scene
-            .pick(&camera(request), &settings(request).surfaces, size, pixel, t)
+            .pick(
+                &camera(request),
+                &settings(request).surfaces,
+                size,
+                pixel,
+                t,
+            )
             .map_err(|e| crate::cli::error_text(&e))
     }
 

@@ -126,7 +126,10 @@ mod tests {
         assert!(!h.feed(0.3 + f64::from(STABLE_S) + 0.01, &s));
         assert!(h.can_undo(&s));
         assert!(h.undo(&mut s));
-        assert_eq!(s.surfaces[0].isovalue, 0.0, "one undo takes the whole drag back");
+        assert_eq!(
+            s.surfaces[0].isovalue, 0.0,
+            "one undo takes the whole drag back"
+        );
         assert!(!h.can_undo(&s));
         assert!(h.can_redo(&s));
         assert!(h.redo(&mut s));
@@ -148,6 +151,9 @@ mod tests {
         assert!(h.undo(&mut s));
         assert!(s.clip_boxes.is_empty());
         assert_eq!(s.camera, CameraState::default());
-        assert_eq!(s.render.shadows, shadows, "render options are not edits undo restores");
+        assert_eq!(
+            s.render.shadows, shadows,
+            "render options are not edits undo restores"
+        );
     }
 }

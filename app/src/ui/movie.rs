@@ -19,8 +19,7 @@ use super::jobs::{Job, JobControl};
 use super::panels;
 use super::scheduler::MAX_RENDER_SIDE;
 use crate::cli::movie::{
-    Axis, Encoded, MAX_FRAMES, encode_mp4, frame_path, no_ffmpeg_note, orbit_camera,
-    prepare_folder,
+    Axis, Encoded, MAX_FRAMES, encode_mp4, frame_path, no_ffmpeg_note, orbit_camera, prepare_folder,
 };
 
 /// What the Movie window asks (kept in the preferences).
@@ -63,7 +62,11 @@ impl ViewerApp {
         if !self.rt.movie_window {
             return;
         }
-        let steps = self.rt.data.as_ref().map_or(1, |d| d.step_count());
+        let steps = self
+            .rt
+            .data
+            .as_ref()
+            .map_or(1, super::backend::LoadedData::step_count);
         let m = &mut self.prefs.movie;
         let mut open = true;
         let mut record = false;
@@ -105,7 +108,11 @@ impl ViewerApp {
                     panels::labelled_drag(ui, "Width", panels::number(w).range(16..=8192));
                     panels::labelled_drag(ui, "Height", panels::number(h).range(16..=8192));
                 });
-                panels::labelled_drag(ui, "Frames/s", panels::number(&mut m.fps).range(1.0..=120.0));
+                panels::labelled_drag(
+                    ui,
+                    "Frames/s",
+                    panels::number(&mut m.fps).range(1.0..=120.0),
+                );
                 let mut folder = m.folder.display().to_string();
                 ui.horizontal(|ui| {
                     let l = ui.label("Folder");
@@ -128,7 +135,8 @@ impl ViewerApp {
                 record = ui.button("Record").clicked();
             });
         if record {
-            self.commands.push(Command::Movie(Box::new(self.prefs.movie.clone())));
+            self.commands
+                .push(Command::Movie(Box::new(self.prefs.movie.clone())));
             open = false;
         }
         self.rt.movie_window = open;
@@ -162,9 +170,12 @@ impl ViewerApp {
             self.notify("movie: a time-series movie needs a series", true);
             return;
         }
-        if !(1..=MAX_FRAMES).contains(&frames) || !(m.fps.is_finite() && m.fps > 0.0) {
+        if !((1..=MAX_FRAMES).contains(&frames) && m.fps.is_finite() && m.fps > 0.0) {
             self.notify(
-                format!("movie: {frames} frames at {} frames/s is not a movie", m.fps),
+                format!(
+                    "movie: {frames} frames at {} frames/s is not a movie",
+                    m.fps
+                ),
                 true,
             );
             return;

@@ -213,7 +213,8 @@ impl ViewerApp {
         let Some(pos) = response.hover_pos() else {
             return;
         };
-        let (ctrl_hover, moved) = ui.input(|i| (i.modifiers.command, i.pointer.delta() != Vec2::ZERO));
+        let (ctrl_hover, moved) =
+            ui.input(|i| (i.modifiers.command, i.pointer.delta() != Vec2::ZERO));
         let clicked = response.clicked_by(egui::PointerButton::Primary);
         if clicked || (ctrl_hover && moved && !self.jobs.pick.is_running()) {
             let at = (pos - rect.min) / rect.size();

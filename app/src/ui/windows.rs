@@ -125,9 +125,7 @@ impl ViewerApp {
                         }
                     });
                     egui::ComboBox::from_label("Anti-aliasing")
-                        .selected_text(panels::supersample_label(
-                            self.prefs.screenshot_supersample,
-                        ))
+                        .selected_text(panels::supersample_label(self.prefs.screenshot_supersample))
                         .show_ui(ui, |ui| {
                             for k in [1, 2, 3, 4] {
                                 ui.selectable_value(

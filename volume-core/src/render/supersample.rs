@@ -80,7 +80,8 @@ mod tests {
         assert_eq!((coarse.width, coarse.height), (2, 1));
         // Pixel 0: samples 0, 1, 4, 5 = 0, 255, 255, 255 → 191.25 → 191.
         assert_eq!(coarse.rgba8[0], 191);
-        assert_eq!(coarse.rgba8[1], ((0 + 127 + 127 + 127 + 2) / 4) as u8);
+        // Green is v / 2: 0, 127, 127, 127, rounded to nearest.
+        assert_eq!(coarse.rgba8[1], ((3 * 127 + 2) / 4) as u8);
         assert_eq!(coarse.rgba8[3], 255);
         // Pixel 1: 10, 20, 30, 41 → 25.25 → 25.
         assert_eq!(coarse.rgba8[4], 25);
