@@ -141,7 +141,9 @@ pub fn render<S: IsoScene>(
 }
 
 /// [`render`] into an existing frame, reusing its buffers (no allocation once they are big
-/// enough: interactive callers keep one or two frames and render into them).
+/// enough: interactive callers keep one or two frames and render into them). Supersampling
+/// (`settings.supersample > 1`) is the exception: it allocates the `k`-times larger frame on
+/// each call, which is meant for still frames and image outputs, not for interaction.
 ///
 /// Returns `false` if `cancel` was set before the frame finished; the frame's contents are
 /// then unspecified (partly the new picture), but it stays a valid buffer to render into
