@@ -7,6 +7,8 @@
 //! - [`coloring`]: surfaces coloured by another field (a mesh array, a grid's gradient
 //!   magnitude or a second volume on its grid) resolved against a scene, and
 //!   [`scalar_bar`], the bar composited into image outputs.
+//! - [`distributed`]: sort-first rendering over MPI (`--mpi`; the MPI link needs cargo
+//!   feature `mpi`): rank 0 hands out chunks of each frame and assembles the picture.
 //! - [`export`]: the visible isosurfaces as a PLY, STL or OBJ triangle mesh (CLI, viewer and
 //!   Python share it).
 //! - [`output`]: PNG, `.npy`, report and session outputs through `formats::output` (never
@@ -23,6 +25,7 @@
 
 pub mod cli;
 pub mod coloring;
+pub mod distributed;
 pub mod export;
 pub mod output;
 pub mod progress;

@@ -5,9 +5,13 @@ use clap::Parser;
 
 fn main() -> std::process::ExitCode {
     let cli = isoscope::cli::Cli::parse();
-    let result = match cli.command {
-        Some(command) => isoscope::cli::run(command),
-        None => run_viewer(cli.files),
+    let result = if cli.mpi {
+        isoscope::distributed::launch::run(cli, run_viewer)
+    } else {
+        match cli.command {
+            Some(command) => isoscope::cli::run(command),
+            None => run_viewer(cli.files),
+        }
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -319,6 +319,29 @@ impl SceneVisitor for RenderVisitor<'_> {
     }
 }
 
+/// [`RenderVisitor`] into a caller's frame, reusing its buffers.
+pub struct RenderIntoVisitor<'a> {
+    pub camera: &'a Camera,
+    pub settings: &'a RenderSettings,
+    pub colorings: &'a [Option<SurfaceColoring<'a>>],
+    pub cancel: &'a AtomicBool,
+    pub frame: &'a mut Frame,
+}
+
+impl SceneVisitor for RenderIntoVisitor<'_> {
+    type Output = bool;
+    fn visit<S: IsoScene>(self, scene: &S) -> bool {
+        render_colored_into(
+            scene,
+            self.camera,
+            self.settings,
+            self.colorings,
+            self.cancel,
+            self.frame,
+        )
+    }
+}
+
 struct BoundsVisitor;
 
 impl SceneVisitor for BoundsVisitor {
@@ -387,6 +410,8 @@ pub trait SceneData {
     /// True when the scene already renders with `options`.
     fn has_view_options(&self, options: &ViewOptions) -> bool;
     fn set_view_options(&mut self, options: &ViewOptions);
+    /// The options it renders with (the one a kind does not use at its default).
+    fn view_options(&self) -> ViewOptions;
     /// Time to build the acceleration structure (the `.isot` open time for out-of-core).
     fn build_time(&self) -> Duration;
     /// Bytes of the acceleration structure (kd-tree, BVH nodes) or of the resident treelets.
@@ -493,22 +518,44 @@ impl AnyScene {
     /// treelets of the active isovalues, then draw what is loaded (module docs). Surfaces
     /// with a [`volume_core::render::ColorBy`] are coloured by their field; one that does
     /// not resolve (check with [`AnyScene::check_colorings`] first) keeps its flat colour.
+    ///
+    /// In an MPI job ([`crate::distributed`]), rank 0's frames of the input every rank opened
+    /// are rendered across the ranks; the picture is the same.
     pub fn render(
         &self,
         camera: &Camera,
         settings: &RenderSettings,
         cancel: &AtomicBool,
     ) -> Option<Frame> {
+        if let Some(frame) = crate::distributed::render_if_served(self, camera, settings, cancel) {
+            return frame;
+        }
+        let mut frame = Frame::default();
+        self.render_local_into(camera, settings, cancel, &mut frame)
+            .then_some(frame)
+    }
+
+    /// Renders in this process into `frame`, reusing its buffers (`false` if `cancel` was
+    /// set). With [`RenderSettings::region`] only that part of `frame` is written, which is
+    /// how an MPI rank renders its chunks.
+    pub fn render_local_into(
+        &self,
+        camera: &Camera,
+        settings: &RenderSettings,
+        cancel: &AtomicBool,
+        frame: &mut Frame,
+    ) -> bool {
         if let AnyScene::Ooc(o) = self {
             o.set_isovalues(&settings.active_isovalues().0);
         }
         let resolved = self.resolve_colorings(settings);
         let colorings = crate::coloring::as_colorings(&resolved);
-        self.visit(RenderVisitor {
+        self.visit(RenderIntoVisitor {
             camera,
             settings,
             colorings: &colorings,
             cancel,
+            frame,
         })
     }
 
@@ -521,9 +568,17 @@ impl AnyScene {
         cancel: &AtomicBool,
     ) -> Option<(Frame, Option<usize>)> {
         match self {
-            AnyScene::Ooc(o) => o
-                .render_with_level(camera, settings, cancel)
-                .map(|(f, level)| (f, Some(level))),
+            AnyScene::Ooc(o) => {
+                if let Some(frame) =
+                    crate::distributed::render_if_served(self, camera, settings, cancel)
+                {
+                    // Every rank drew from at least rank 0's levels, which the frame reports.
+                    let level = o.volume.current_level(o.intersector);
+                    return frame.map(|f| (f, Some(level)));
+                }
+                o.render_with_level(camera, settings, cancel)
+                    .map(|(f, level)| (f, Some(level)))
+            }
             s => s.render(camera, settings, cancel).map(|f| (f, None)),
         }
     }
@@ -1006,6 +1061,13 @@ impl SceneData for GridData {
         self.scene.set_intersector(options.intersector);
     }
 
+    fn view_options(&self) -> ViewOptions {
+        ViewOptions {
+            intersector: self.scene.intersector(),
+            normals: TetNormals::default(),
+        }
+    }
+
     fn build_time(&self) -> Duration {
         self.scene.build_time()
     }
@@ -1424,6 +1486,13 @@ impl SceneData for TetData {
         self.scene.set_normals(options.normals);
     }
 
+    fn view_options(&self) -> ViewOptions {
+        ViewOptions {
+            intersector: Intersector::default(),
+            normals: self.scene.normals(),
+        }
+    }
+
     fn build_time(&self) -> Duration {
         self.build_time
     }
@@ -1634,6 +1703,13 @@ impl SceneData for OocData {
 
     fn set_view_options(&mut self, options: &ViewOptions) {
         self.intersector = options.intersector;
+    }
+
+    fn view_options(&self) -> ViewOptions {
+        ViewOptions {
+            intersector: self.intersector,
+            normals: TetNormals::default(),
+        }
     }
 
     fn build_time(&self) -> Duration {

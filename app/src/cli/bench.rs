@@ -1101,7 +1101,142 @@ pub fn format_report(r: &BenchReport) -> String {
     s
 }
 
+/// `bench --mpi`: frames rendered across the job's ranks, and what each rank did.
+#[derive(Debug, Serialize)]
+pub struct DistributedReport {
+    pub file: String,
+    pub ranks: usize,
+    pub threads_per_rank: usize,
+    pub width: u32,
+    pub height: u32,
+    pub frames: usize,
+    pub median_frame_ms: f64,
+    /// Primary rays per second of the whole job (median frame).
+    pub rays_per_second: f64,
+    /// Per rank, over all timed frames: chunks per frame and rays/s while rendering.
+    pub per_rank: Vec<DistributedRank>,
+    pub gather_bytes_per_frame: f64,
+    pub median_gather_ms: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct DistributedRank {
+    pub rank: usize,
+    pub chunks_per_frame: f64,
+    pub rays_per_second: f64,
+}
+
+fn measure_distributed(args: &Args) -> anyhow::Result<DistributedReport> {
+    let s = setup(args)?;
+    let go = AtomicBool::new(false);
+    let failed = || {
+        crate::distributed::status()
+            .and_then(|j| j.failure)
+            .map_or_else(|| anyhow::anyhow!("cancelled"), |f| anyhow::anyhow!(f))
+    };
+    // The first frame waits for every rank to open the input; not timed.
+    s.scene
+        .render(&s.camera, &s.settings, &go)
+        .ok_or_else(failed)?;
+    let frames = args.frames.max(1);
+    let mut frame_ms = Vec::with_capacity(frames);
+    let mut rays_per_s = Vec::with_capacity(frames);
+    let mut gather_ms = Vec::with_capacity(frames);
+    let mut gather_bytes = 0u64;
+    let mut per_rank: Vec<(usize, u64, f64)> = Vec::new();
+    for _ in 0..frames {
+        let f = s
+            .scene
+            .render(&s.camera, &s.settings, &go)
+            .ok_or_else(failed)?;
+        let r = crate::distributed::with_cluster(|c| c.last_report().cloned())
+            .flatten()
+            .context("no MPI job serves this file")?;
+        let secs = f.elapsed.as_secs_f64();
+        frame_ms.push(secs * 1e3);
+        rays_per_s.push(f.rays.primary as f64 / secs.max(1e-9));
+        gather_ms.push(r.gather_seconds * 1e3);
+        gather_bytes += r.gather_bytes;
+        per_rank.resize(r.ranks.len(), (0, 0, 0.0));
+        for (acc, rank) in per_rank.iter_mut().zip(&r.ranks) {
+            acc.0 += rank.chunks;
+            acc.1 += rank.primary_rays;
+            acc.2 += rank.render_seconds;
+        }
+    }
+    Ok(DistributedReport {
+        file: args.file.display().to_string(),
+        ranks: per_rank.len(),
+        threads_per_rank: rayon::current_num_threads(),
+        width: s.settings.width,
+        height: s.settings.height,
+        frames,
+        median_frame_ms: median(&frame_ms),
+        rays_per_second: median(&rays_per_s),
+        per_rank: per_rank
+            .iter()
+            .enumerate()
+            .map(|(rank, &(chunks, rays, secs))| DistributedRank {
+                rank,
+                chunks_per_frame: chunks as f64 / frames as f64,
+                rays_per_second: rays as f64 / secs.max(1e-9),
+            })
+            .collect(),
+        gather_bytes_per_frame: gather_bytes as f64 / frames as f64,
+        median_gather_ms: median(&gather_ms),
+    })
+}
+
+fn format_distributed(r: &DistributedReport) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{}: {}x{}, MPI {} ranks x {} threads, {} frames",
+        r.file, r.width, r.height, r.ranks, r.threads_per_rank, r.frames
+    );
+    let _ = writeln!(
+        s,
+        "frame: median {:.1} ms, {:.2} M primary rays/s",
+        r.median_frame_ms,
+        r.rays_per_second / 1e6
+    );
+    for p in &r.per_rank {
+        let _ = writeln!(
+            s,
+            "rank {}: {:.1} chunks/frame, {:.2} M rays/s while rendering",
+            p.rank,
+            p.chunks_per_frame,
+            p.rays_per_second / 1e6
+        );
+    }
+    let _ = writeln!(
+        s,
+        "gather on rank 0: {:.2} MB/frame, median {:.2} ms/frame",
+        r.gather_bytes_per_frame / 1e6,
+        r.median_gather_ms
+    );
+    s
+}
+
 pub fn run(args: &Args) -> anyhow::Result<()> {
+    if crate::distributed::status().is_some() {
+        let report = match args.threads {
+            None => measure_distributed(args)?,
+            Some(0) => bail!("--threads must be at least 1"),
+            Some(t) => rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .context("cannot start the thread pool")?
+                .install(|| measure_distributed(args))?,
+        };
+        if args.json {
+            println!("{}", serde_json::to_string(&report)?);
+        } else {
+            print!("{}", format_distributed(&report));
+        }
+        return Ok(());
+    }
     let report = match args.threads {
         None => measure(args)?,
         Some(0) => bail!("--threads must be at least 1"),

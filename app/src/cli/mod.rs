@@ -24,6 +24,15 @@ pub struct Cli {
     pub command: Option<Command>,
     /// Files to open in the viewer (when no subcommand is given).
     pub files: Vec<std::path::PathBuf>,
+    /// Render across the ranks of an MPI job: `mpirun -n N isoscope render|bench|movie …
+    /// --mpi`, or `mpirun -n N isoscope --mpi FILE` for the viewer. Every rank opens the input
+    /// itself (shared storage). Needs a build with cargo feature `mpi`.
+    #[arg(long, global = true)]
+    pub mpi: bool,
+    /// With --mpi: seconds a rank may stay silent during a frame (or while opening, ten
+    /// times this) before the job fails naming it.
+    #[arg(long, global = true, value_name = "SECONDS", default_value_t = 60.0)]
+    pub mpi_timeout: f64,
 }
 
 #[derive(Debug, Subcommand)]

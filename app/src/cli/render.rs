@@ -519,8 +519,11 @@ pub fn render_scene_with(
             // load after it; render until a frame pages nothing in.
             for _ in 0..MAX_DEMAND_FRAMES {
                 let generation = o.volume().generation();
+                // Through the scene, so that an MPI job renders it across its ranks.
                 out = Some(
-                    o.render_with_level(camera, settings, cancel)
+                    scene
+                        .render_with_level(camera, settings, cancel)
+                        .and_then(|(f, level)| level.map(|l| (f, l)))
                         .context("rendering was cancelled")?,
                 );
                 if !(finished && status.budget_limited) {

@@ -161,6 +161,18 @@ impl ViewerApp {
                 ui.separator();
                 lod_ui(ui, l, self.rt.shown.as_ref().and_then(|s| s.lod_level));
             }
+            if let Some(job) = crate::distributed::status() {
+                ui.separator();
+                match &job.failure {
+                    None => ui.label(format!("MPI: {} ranks", job.ranks)),
+                    Some(why) => ui
+                        .colored_label(
+                            ui.visuals().warn_fg_color,
+                            "MPI job failed: rendering locally",
+                        )
+                        .on_hover_text(why.as_str()),
+                };
+            }
             if cancel {
                 self.commands.push(Command::CancelJobs);
             }

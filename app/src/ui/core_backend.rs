@@ -138,6 +138,7 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
         scale: request.scale.max(1),
         packets: true,
         supersample: supersample_for(o.supersample, request.width.max(request.height)),
+        region: None,
     }
 }
 

@@ -1150,6 +1150,12 @@ impl AnyOocVolume {
         dispatch_ooc!(self, v => visitor.visit(&v.scene(intersector)))
     }
 
+    /// The finest level a frame rendered now could reach (what
+    /// [`Self::render_with_level`] reports), without rendering.
+    pub fn current_level(&self, intersector: Intersector) -> usize {
+        dispatch_ooc!(self, v => v.scene(intersector).level())
+    }
+
     /// Renders one frame with the levels loaded now and returns it with the finest level
     /// that frame could reach (0 = coarsest); `None` if `cancel` was set. The caller
     /// requests the frame's isovalues first ([`Self::set_isovalues`]).

@@ -36,6 +36,6 @@ pub use scene::{
     CountStats, Hit, HitField, IsoScene, NoStats, SceneVisitor, Stats, TraversalCounts,
 };
 pub use settings::{
-    ClipRegion, ColorBy, ColorField, Keep, Light, LightKind, MAX_IMAGE_SIDE, RenderSettings,
-    SettingsError, Surface,
+    ClipRegion, ColorBy, ColorField, Keep, Light, LightKind, MAX_IMAGE_SIDE, PixelRegion,
+    RenderSettings, SettingsError, Surface,
 };

@@ -47,7 +47,7 @@ use crate::render::camera::{Camera, RayGen};
 use crate::render::clip::kept_intervals;
 use crate::render::colormap::Colormap;
 use crate::render::scene::{CountStats, Hit, HitField, IsoScene, NoStats, Stats, TraversalCounts};
-use crate::render::settings::RenderSettings;
+use crate::render::settings::{PixelRegion, RenderSettings};
 use crate::render::shade::Shader;
 
 /// Tile side in samples.
@@ -143,7 +143,8 @@ pub fn render<S: IsoScene>(
 /// [`render`] into an existing frame, reusing its buffers (no allocation once they are big
 /// enough: interactive callers keep one or two frames and render into them). Supersampling
 /// (`settings.supersample > 1`) is the exception: it allocates the `k`-times larger frame on
-/// each call, which is meant for still frames and image outputs, not for interaction.
+/// each call (kept per thread between calls that render a `region`), which is meant for still
+/// frames and image outputs, not for interaction.
 ///
 /// Returns `false` if `cancel` was set before the frame finished; the frame's contents are
 /// then unspecified (partly the new picture), but it stays a valid buffer to render into
@@ -178,14 +179,29 @@ pub fn render_colored_into<S: IsoScene>(
             width: settings.width.saturating_mul(k),
             height: settings.height.saturating_mul(k),
             supersample: 1,
+            region: settings.region.map(|r| PixelRegion {
+                x: r.x.map(|v| v.saturating_mul(k)),
+                y: r.y.map(|v| v.saturating_mul(k)),
+            }),
             ..settings.clone()
         };
-        let mut fine = Frame::default();
-        if !render_colored_into(scene, camera, &fine_settings, colorings, cancel, &mut fine) {
-            return false;
+        // The fine frame is kept per thread: a sort-first rank renders many regions of one
+        // frame, each of which would otherwise allocate and clear the whole fine frame.
+        thread_local! {
+            static FINE: std::cell::RefCell<Frame> = std::cell::RefCell::new(Frame::default());
         }
-        crate::render::supersample::downsample_into(&fine, k, frame);
-        return true;
+        let mut fine = FINE.with(std::cell::RefCell::take);
+        if fine.width != fine_settings.width || fine.height != fine_settings.height {
+            fine = Frame::default();
+        }
+        let done = render_colored_into(scene, camera, &fine_settings, colorings, cancel, &mut fine);
+        if done {
+            crate::render::supersample::downsample_into(&fine, k, settings.region, frame);
+        }
+        if settings.region.is_some() {
+            FINE.with(|f| f.replace(fine));
+        }
+        return done;
     }
     let shadows = settings.shadows && Shader::new(&settings.light).casts_shadows();
     let c = colorings;
@@ -341,7 +357,15 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let (width, height) = (settings.width, settings.height);
     let scale = settings.scale.max(1);
     let samples = [width.div_ceil(scale), height.div_ceil(scale)];
-    let tiles_x = samples[0].div_ceil(TILE);
+    // The tiles to render: all, or those overlapping `settings.region`.
+    let tile_px = TILE * scale;
+    let (tiles_x, tiles_y) = match settings.region {
+        None => (0..samples[0].div_ceil(TILE), 0..samples[1].div_ceil(TILE)),
+        Some(r) => (
+            r.x[0] / tile_px..r.x[1].min(width).div_ceil(tile_px),
+            r.y[0] / tile_px..r.y[1].min(height).div_ceil(tile_px),
+        ),
+    };
     let (isovalues, surface_of) = settings.active_isovalues();
     let bounds = scene.world_bounds();
     let diag = if bounds.is_empty() {
@@ -389,13 +413,16 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
             .zip(frame.depth.par_chunks_mut(band_rows * row_len))
             .enumerate()
             .map_init(Scratch::default, |sc, (index, (rgba8, depth))| {
+                if !tiles_y.contains(&(index as u32)) {
+                    return Some(Tally::<St>::new());
+                }
                 let mut band = Band {
                     index: index as u32,
                     rgba8,
                     depth,
                 };
                 let mut tally = Tally::<St>::new();
-                for tx in 0..tiles_x {
+                for tx in tiles_x.clone() {
                     if cancel.load(Ordering::Relaxed) {
                         return None;
                     }
@@ -785,7 +812,7 @@ mod tests {
     use super::*;
     use crate::render::analytic::SphereScene;
     use crate::render::camera::Projection;
-    use crate::render::settings::{ClipRegion, Keep, Light, LightKind, Surface};
+    use crate::render::settings::{ClipRegion, Keep, Light, LightKind, SettingsError, Surface};
 
     fn cube(h: f32) -> Aabb {
         Aabb::new(Vec3::splat(-h), Vec3::splat(h))
@@ -1410,6 +1437,107 @@ mod tests {
             assert_eq!(bits(&f.depth), bits(&frames[0].depth));
             assert_eq!((f.counts, f.rays), (frames[0].counts, frames[0].rays));
         }
+    }
+
+    #[test]
+    fn regions_render_exactly_their_tiles_and_assemble_into_the_whole_frame() {
+        let scene = SphereScene {
+            spheres: vec![(Vec3::ZERO, 1.0), (Vec3::new(0.9, 0.3, 0.2), 0.6)],
+            bounds: cube(2.5),
+        };
+        let cam = Camera::orbit(&cube(2.5), 35.0, 20.0, 40.0);
+        for (w, h, scale, supersample) in [(70, 45, 1, 1), (70, 45, 2, 1), (50, 37, 1, 2)] {
+            let settings = RenderSettings {
+                width: w,
+                height: h,
+                scale,
+                supersample,
+                shadows: true,
+                light: Light {
+                    kind: LightKind::Directional {
+                        dir: Vec3::new(0.3, 1.0, 0.5),
+                    },
+                    ..Light::default()
+                },
+                surfaces: vec![
+                    Surface {
+                        opacity: 0.5,
+                        ..Surface::new(0.3, [0.2, 0.4, 0.9])
+                    },
+                    Surface::new(0.0, [0.9, 0.7, 0.1]),
+                ],
+                ..RenderSettings::default()
+            };
+            let whole = render(&scene, &cam, &settings, &go()).unwrap();
+            // Regions of 2×1 tiles, rendered into one frame in reverse order; the frame
+            // starts as junk so that a pixel left unwritten would show.
+            let side = TILE * scale;
+            let mut assembled = Frame {
+                rgba8: vec![7; whole.rgba8.len()],
+                depth: vec![-1.0; whole.depth.len()],
+                ..Frame::default()
+            };
+            let mut primary = 0;
+            let mut regions = Vec::new();
+            for y0 in (0..h).step_by(side as usize) {
+                for x0 in (0..w).step_by(2 * side as usize) {
+                    regions.push(PixelRegion {
+                        x: [x0, (x0 + 2 * side).min(w)],
+                        y: [y0, (y0 + side).min(h)],
+                    });
+                }
+            }
+            for region in regions.iter().rev() {
+                let part = RenderSettings {
+                    region: Some(*region),
+                    ..settings.clone()
+                };
+                assert_eq!(part.validate(), Ok(()));
+                assert!(render_into(&scene, &cam, &part, &go(), &mut assembled));
+                primary += assembled.rays.primary;
+            }
+            assert_eq!(assembled.rgba8, whole.rgba8, "{w}x{h} scale {scale}");
+            let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&assembled.depth), bits(&whole.depth));
+            assert_eq!(primary, whole.rays.primary);
+            // One region alone writes only its own pixels.
+            let one = PixelRegion {
+                x: [side, 2 * side],
+                y: [0, side],
+            };
+            let mut partial = Frame {
+                rgba8: vec![7; whole.rgba8.len()],
+                depth: vec![-1.0; whole.depth.len()],
+                ..Frame::default()
+            };
+            let part = RenderSettings {
+                region: Some(one),
+                ..settings.clone()
+            };
+            assert!(render_into(&scene, &cam, &part, &go(), &mut partial));
+            for j in 0..h {
+                for i in 0..w {
+                    let inside =
+                        (one.x[0]..one.x[1]).contains(&i) && (one.y[0]..one.y[1]).contains(&j);
+                    let p = (j * w + i) as usize;
+                    if inside {
+                        assert_eq!(pixel(&partial, i, j), pixel(&whole, i, j));
+                    } else {
+                        assert_eq!(partial.depth[p], -1.0, "pixel {i},{j} outside the region");
+                    }
+                }
+            }
+        }
+        let bad = RenderSettings {
+            width: 10,
+            height: 10,
+            region: Some(PixelRegion {
+                x: [0, 11],
+                y: [0, 5],
+            }),
+            ..RenderSettings::default()
+        };
+        assert!(matches!(bad.validate(), Err(SettingsError::Region { .. })));
     }
 
     #[test]

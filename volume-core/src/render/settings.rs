@@ -190,6 +190,27 @@ pub struct RenderSettings {
     /// Anti-aliasing at full resolution (`scale` 1): `supersample²` samples per pixel,
     /// averaged ([`crate::render::supersample`]); 1 is off.
     pub supersample: u32,
+    /// Render only the tiles that overlap this part of the image (pbrt's pixel bounds); the
+    /// other pixels of the frame keep what they held. Sort-first distribution renders each
+    /// rank's tiles this way; `None` is the whole image.
+    pub region: Option<PixelRegion>,
+}
+
+/// A half-open rectangle of pixels, `x[0] <= x < x[1]`, `y[0] <= y < y[1]`, row 0 at the top.
+/// When its corners are multiples of the tile side times the progressive scale, exactly these
+/// pixels are rendered; otherwise every tile it overlaps is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PixelRegion {
+    pub x: [u32; 2],
+    pub y: [u32; 2],
+}
+
+impl PixelRegion {
+    /// Number of pixels it covers.
+    pub fn pixels(&self) -> usize {
+        (self.x[1].saturating_sub(self.x[0]) as usize)
+            * (self.y[1].saturating_sub(self.y[0]) as usize)
+    }
 }
 
 impl Default for RenderSettings {
@@ -207,6 +228,7 @@ impl Default for RenderSettings {
             scale: 1,
             packets: true,
             supersample: 1,
+            region: None,
         }
     }
 }
@@ -241,6 +263,13 @@ pub enum SettingsError {
         side = MAX_IMAGE_SIDE
     )]
     Supersample { k: u32 },
+    #[error("region x {x:?}, y {y:?} must be non-empty and inside the {width}x{height} image")]
+    Region {
+        x: [u32; 2],
+        y: [u32; 2],
+        width: u32,
+        height: u32,
+    },
 }
 
 fn unit_color(c: [f32; 3]) -> bool {
@@ -350,6 +379,16 @@ impl RenderSettings {
             || max_side.saturating_mul(k) > MAX_IMAGE_SIDE
         {
             return Err(SettingsError::Supersample { k });
+        }
+        if let Some(PixelRegion { x, y }) = self.region
+            && !(x[0] < x[1] && x[1] <= self.width && y[0] < y[1] && y[1] <= self.height)
+        {
+            return Err(SettingsError::Region {
+                x,
+                y,
+                width: self.width,
+                height: self.height,
+            });
         }
         Ok(())
     }

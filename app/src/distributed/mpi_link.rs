@@ -1,0 +1,99 @@
+//! [`Link`] over MPI (rsmpi, the system's OpenMPI or MPICH), and the `--mpi` entry point.
+//!
+//! MPI is initialized asking for `MPI_THREAD_MULTIPLE` and accepted from
+//! `MPI_THREAD_SERIALIZED` up: the viewer renders from a job thread, not from the thread
+//! that initialized MPI, and calls are serialized by a lock here. Messages are byte
+//! vectors with the [`Tag`] as MPI tag; rank 0 polls with `MPI_Improbe`, workers block in
+//! `MPI_Mprobe`.
+
+use std::sync::Mutex;
+
+use mpi::Threading;
+use mpi::point_to_point::{Destination as _, MatchedReceiveVec as _, Source as _};
+use mpi::topology::{Communicator as _, SimpleCommunicator};
+
+use super::link::{Envelope, Link, Tag};
+
+/// The world communicator, one MPI call at a time.
+pub struct MpiLink {
+    rank: usize,
+    size: usize,
+    calls: Mutex<()>,
+}
+
+impl MpiLink {
+    /// Call after [`initialize`].
+    pub fn world() -> Self {
+        let world = SimpleCommunicator::world();
+        Self {
+            rank: world.rank() as usize,
+            size: world.size() as usize,
+            calls: Mutex::new(()),
+        }
+    }
+}
+
+/// Initializes MPI (once per process); the universe finalizes MPI when dropped.
+pub fn initialize() -> anyhow::Result<mpi::environment::Universe> {
+    let (universe, level) = mpi::initialize_with_threading(Threading::Multiple)
+        .ok_or_else(|| anyhow::anyhow!("MPI was already initialized"))?;
+    if level < Threading::Serialized {
+        anyhow::bail!(
+            "this MPI library offers thread level {level:?}; Isoscope needs at least Serialized"
+        );
+    }
+    Ok(universe)
+}
+
+impl Link for MpiLink {
+    fn rank(&self) -> usize {
+        self.rank
+    }
+
+    fn size(&self) -> usize {
+        self.size
+    }
+
+    fn send(&self, to: usize, tag: Tag, bytes: &[u8]) {
+        let _guard = self.calls.lock();
+        SimpleCommunicator::world()
+            .process_at_rank(to as i32)
+            .send_with_tag(bytes, tag as i32);
+    }
+
+    fn try_recv(&self) -> Option<Envelope> {
+        let _guard = self.calls.lock();
+        let world = SimpleCommunicator::world();
+        let matched = world.any_process().immediate_matched_probe()?;
+        let (bytes, status) = matched.matched_receive_vec::<u8>();
+        Some(Envelope {
+            from: status.source_rank() as usize,
+            tag: Tag::from_i32(status.tag())?,
+            bytes,
+        })
+    }
+
+    fn recv(&self) -> Option<Envelope> {
+        // Workers only: they make no other MPI calls meanwhile, so blocking under the lock
+        // is safe.
+        let _guard = self.calls.lock();
+        let world = SimpleCommunicator::world();
+        loop {
+            let (bytes, status) = world
+                .any_process()
+                .matched_probe()
+                .matched_receive_vec::<u8>();
+            if let Some(tag) = Tag::from_i32(status.tag()) {
+                return Some(Envelope {
+                    from: status.source_rank() as usize,
+                    tag,
+                    bytes,
+                });
+            }
+        }
+    }
+
+    fn abort(&self, code: i32) {
+        SimpleCommunicator::world().abort(code);
+    }
+}

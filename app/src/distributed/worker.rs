@@ -1,0 +1,163 @@
+//! A worker rank's side of a job: open the input, then render batches of chunks until told
+//! to quit.
+//!
+//! Each frame's job sets the worker's scene to rank 0's state (time step, mesh field,
+//! intersector, normals) before any ray is traced; a failure there is sent back as the
+//! frame's error. Chunks are rendered into one frame-sized buffer that is kept between
+//! batches and frames (no allocation per chunk), and only their pixels travel back.
+
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use volume_core::render::{Frame, RenderSettings};
+
+use super::link::{Link, Tag};
+use super::wire::{self, BatchResult, FrameJob};
+use crate::scene::{AnyScene, SceneData as _, ViewOptions};
+
+/// Tells rank 0 how opening went. Returns the scene to serve, or `None` after reporting
+/// the error (the caller then waits for `Quit` with [`serve_none`]).
+pub fn report_opened(link: &dyn Link, opened: anyhow::Result<AnyScene>) -> Option<AnyScene> {
+    match opened {
+        Ok(scene) => {
+            link.send(0, Tag::Opened, &[]);
+            Some(scene)
+        }
+        Err(e) => {
+            link.send(0, Tag::Error, crate::cli::error_text(&e).as_bytes());
+            None
+        }
+    }
+}
+
+/// After a failed open: answers every job with the error until rank 0 says quit.
+pub fn serve_none(link: &dyn Link, why: &str) {
+    while let Some(env) = link.recv() {
+        match env.tag {
+            Tag::Quit => return,
+            Tag::Job => link.send(0, Tag::Error, why.as_bytes()),
+            Tag::Batch => {
+                if let Ok((frame, _)) = wire::decode_batch(&env.bytes) {
+                    let empty = BatchResult {
+                        frame,
+                        render_ns: 0,
+                        rays: [0; 3],
+                        chunks: Vec::new(),
+                        rgba8: Vec::new(),
+                        depth: Vec::new(),
+                    };
+                    link.send(0, Tag::Result, &empty.encode());
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Renders what rank 0 asks until it says quit (or the link is gone).
+pub fn serve(link: &dyn Link, scene: &mut AnyScene) {
+    let never = AtomicBool::new(false);
+    let mut frame = Frame::default();
+    let mut job: Option<FrameJob> = None;
+    while let Some(env) = link.recv() {
+        match env.tag {
+            Tag::Quit => return,
+            Tag::Job => {
+                let prepared = wire::decode_job(&env.bytes)
+                    .map_err(anyhow::Error::from)
+                    .and_then(|j| prepare(scene, &j).map(|()| j));
+                match prepared {
+                    Ok(j) => {
+                        link.send(0, Tag::Ready, &wire::encode_frame(j.frame));
+                        job = Some(j);
+                    }
+                    Err(e) => {
+                        link.send(0, Tag::Error, crate::cli::error_text(&e).as_bytes());
+                        job = None;
+                    }
+                }
+            }
+            Tag::Batch => {
+                let Ok((number, chunks)) = wire::decode_batch(&env.bytes) else {
+                    continue;
+                };
+                let Some(j) = job.as_ref().filter(|j| j.frame == number) else {
+                    continue;
+                };
+                if chunks.is_empty() {
+                    continue;
+                }
+                let grid = j.grid();
+                let start = Instant::now();
+                let mut rays = [0u64; 3];
+                for &id in &chunks {
+                    if id as usize >= grid.len() {
+                        continue;
+                    }
+                    let part = RenderSettings {
+                        region: Some(grid.region(id)),
+                        ..j.settings.clone()
+                    };
+                    scene.render_local_into(&j.camera, &part, &never, &mut frame);
+                    rays[0] += frame.rays.primary;
+                    rays[1] += frame.rays.transparency;
+                    rays[2] += frame.rays.shadow;
+                }
+                let chunks: Vec<u32> = chunks
+                    .into_iter()
+                    .filter(|&id| (id as usize) < grid.len())
+                    .collect();
+                let result = BatchResult::from_frame(
+                    number,
+                    grid,
+                    &chunks,
+                    &frame,
+                    start.elapsed().as_nanos() as u64,
+                    rays,
+                );
+                link.send(0, Tag::Result, &result.encode());
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Puts `scene` in the state `job` was made in.
+fn prepare(scene: &mut AnyScene, job: &FrameJob) -> anyhow::Result<()> {
+    if scene.step() != job.step {
+        scene
+            .set_step(job.step)
+            .with_context(|| format!("time step {}", job.step))?;
+    }
+    if let Some(field) = &job.field
+        && scene.data().field() != Some(field.as_str())
+    {
+        scene.data_mut().set_field(field)?;
+    }
+    let view = ViewOptions {
+        intersector: job.intersector,
+        normals: if job.smooth_normals {
+            volume_core::tet::TetNormals::Smooth
+        } else {
+            volume_core::tet::TetNormals::Faceted
+        },
+    };
+    if !scene.data().has_view_options(&view) {
+        scene.data_mut().set_view_options(&view);
+    }
+    job.settings.validate()?;
+    job.camera.validate()?;
+    scene.check_colorings(&job.settings)?;
+    if let AnyScene::Ooc(o) = scene {
+        o.set_isovalues(&job.settings.active_isovalues().0);
+        let deadline = Instant::now() + Duration::from_millis(job.level_wait_ms);
+        while o.status().loaded_levels < job.levels && Instant::now() < deadline {
+            if let Some(e) = o.status().error {
+                anyhow::bail!("{}: {e}", o.path().display());
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+    Ok(())
+}
