@@ -1866,3 +1866,66 @@ fn colour_by_switches_the_colouring_and_shows_a_scalar_bar() {
     let (ours, _) = render_both(h.state(), &truth, &small_request(h.state()));
     assert_eq!(ours, flat);
 }
+
+/// The viewer as rank 0 of a job (`mpirun -n 3 isoscope --mpi FILE`), its ranks threads here:
+/// its frames of that file are rendered across the ranks (both workers send chunks, previews
+/// and full frames alike), and the status bar says so.
+#[test]
+fn frames_of_the_file_every_rank_opened_render_across_the_job() {
+    use isoscope::distributed::link::{Link as _, LocalLink};
+    use isoscope::distributed::{Cluster, install, uninstall, with_cluster, worker};
+    use isoscope::scene::{SceneOptions, open_scene};
+
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("blobs.nrrd");
+    let volume = data_samples::Generator::Blobs
+        .generate([40, 36, 32], volume_core::VoxelType::F32)
+        .unwrap();
+    formats::nrrd::write_nrrd(
+        &file,
+        &volume,
+        formats::nrrd::NrrdEncoding::Raw,
+        formats::output::Replace::Refuse,
+    )
+    .unwrap();
+    let mut links = LocalLink::group(3).into_iter();
+    let root = links.next().unwrap();
+    let workers: Vec<_> = links
+        .map(|link| {
+            let file = file.clone();
+            std::thread::spawn(move || {
+                let opened = open_scene(&file, &SceneOptions::default());
+                if let Some(mut scene) = worker::report_opened(&link, opened) {
+                    worker::serve(&link, &mut scene);
+                }
+                link.rank()
+            })
+        })
+        .collect();
+    install(
+        Cluster::new(Box::new(root), &file, Duration::from_secs(30)),
+        true,
+    );
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1200.0, 900.0))
+        .build_eframe(|cc| {
+            ViewerApp::with_backend(&cc.egui_ctx, Arc::new(CoreBackend), vec![file.clone()])
+        });
+    step_until(&mut h, "the file", |a| a.data().is_some());
+    settle(&mut h);
+    h.get_by_label("MPI: 3 ranks");
+    let report = with_cluster(|c| c.last_report().cloned())
+        .flatten()
+        .unwrap();
+    assert_eq!(report.ranks.len(), 3);
+    assert!(
+        report.ranks.iter().skip(1).all(|r| r.chunks > 0),
+        "every worker rendered chunks: {report:?}"
+    );
+    let mut cluster = uninstall().unwrap();
+    assert!(cluster.failure().is_none());
+    cluster.shut_down();
+    for w in workers {
+        w.join().unwrap();
+    }
+}

@@ -208,3 +208,33 @@ fn a_rank_that_cannot_open_its_input_ends_the_job_with_an_error_naming_it() {
     assert!(t.contains("Error: rank 1: ph.nrrd: No such file"), "{t}");
     assert!(!d.join("out.png").exists(), "no image from a failed job");
 }
+
+#[test]
+fn a_rank_that_dies_mid_job_ends_it_with_an_error_instead_of_a_hang() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    generate(d, &["phantom", "--size", "64", "-o", "ph.nrrd"]);
+    // Rank 1's isoscope is killed once the job is under way; rank 0 benchmarks many frames
+    // and must stop, by MPI noticing the death or by --mpi-timeout, naming the failure.
+    let start = Instant::now();
+    let mut cmd = Command::new("mpirun");
+    cmd.current_dir(d)
+        .args([
+            "--allow-run-as-root",
+            "--oversubscribe",
+            "-n",
+            "2",
+            "sh",
+            "-c",
+        ])
+        .arg(format!(
+            "args='bench ph.nrrd --iso 500 --size 512x512 --frames 100000 --skip-dda --mpi \
+             --mpi-timeout 3'; if [ \"$OMPI_COMM_WORLD_RANK\" = 1 ]; then {BIN} $args & \
+             pid=$!; sleep 2; kill -9 $pid; wait $pid; exit 9; else exec {BIN} $args; fi"
+        ));
+    let out = run_limited(cmd, Duration::from_mins(1));
+    assert!(!out.status.success());
+    assert!(start.elapsed() < Duration::from_secs(40));
+    let t = text(&out);
+    assert!(t.contains("rank 1") || t.contains("rank 1 "), "{t}");
+}

@@ -2,26 +2,32 @@
 //!
 //! Per frame: the job goes to every worker; each answers `Ready` (or `Error`); from then
 //! on every `Ready` or `Result` is answered with the rank's next batch
-//! ([`super::schedule::Schedule`]), an empty batch when none is left. Rank 0 renders one
-//! chunk at a time between polls, so it answers within about one chunk's render time. A
+//! ([`super::schedule::Schedule`]), an empty batch when none is left. Rank 0 renders its own
+//! batches on a second thread (its chunks in parallel, [`super::worker::render_chunks`]) while
+//! this one answers the others and pastes their pixels in, so nobody waits on it. A
 //! rank with work outstanding that sends nothing for `timeout` fails the frame with an
 //! error naming it; a frame is otherwise only finished when every chunk is in, and the
 //! picture is the single-process one bit for bit (the renderer's tiles are independent).
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, MutexGuard, mpsc};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context as _, anyhow, bail};
+use anyhow::{anyhow, bail};
 use volume_core::render::{Camera, Frame, RenderSettings, TraversalCounts};
 
 use super::link::{Envelope, Link, Tag};
 use super::schedule::{ChunkGrid, Schedule};
 use super::wire::{self, BatchResult, FrameJob};
+use super::worker;
 use crate::scene::AnyScene;
 
 /// Largest batch handed to a worker at once.
 const MAX_BATCH: usize = 16;
+
+/// How often rank 0 looks for the other ranks' messages while it renders.
+const POLL: Duration = Duration::from_micros(200);
 
 /// Per rank, what it did in the last frame.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -232,6 +238,24 @@ impl Cluster {
         };
         let grid = job.grid();
         let ranks = self.size();
+        if ranks == 1 {
+            // Nobody to share with: the whole frame at once, as without MPI.
+            let mut frame = Frame::default();
+            let t = Instant::now();
+            if !scene.render_local_into(camera, &job.settings, cancel, &mut frame) {
+                return Ok(None);
+            }
+            self.last = Some(FrameReport {
+                ranks: vec![RankReport {
+                    chunks: grid.len(),
+                    primary_rays: frame.rays.primary,
+                    render_seconds: t.elapsed().as_secs_f64(),
+                }],
+                seconds: t.elapsed().as_secs_f64(),
+                ..FrameReport::default()
+            });
+            return Ok(Some(frame));
+        }
         let bytes = wire::encode_job(&job);
         let mut peers = vec![Peer::Done; ranks];
         for (r, p) in peers.iter_mut().enumerate().skip(1) {
@@ -243,133 +267,159 @@ impl Cluster {
             .as_ref()
             .filter(|(g, _)| *g == grid)
             .map(|(_, o)| o.as_slice());
-        let mut schedule = Schedule::new(grid, ranks, previous);
+        let schedule = Mutex::new(Schedule::new(grid, ranks, previous));
         let mut frame = Frame::default();
+        size_frame(&mut frame, grid);
         let mut report = FrameReport {
             ranks: vec![RankReport::default(); ranks],
             ..FrameReport::default()
         };
         let mut counts = TraversalCounts::default();
         let mut rays = [0u64; 3];
-        let mut error: Option<anyhow::Error> = None;
-        let mut stopped = false;
-        loop {
-            // Answer every message that has arrived.
-            while let Some(env) = self.link.try_recv() {
-                let r = env.from;
-                if r == 0 || r >= ranks {
-                    continue;
+        let stop = AtomicBool::new(false);
+        let timeout = self.timeout;
+        let link = &*self.link;
+        let number = self.frame;
+        let (to_me, local) = mpsc::channel::<(Vec<(u32, Frame)>, f64)>();
+        let mut hung = false;
+        let outcome = std::thread::scope(|s| {
+            // Rank 0's own share, on its threads, while this thread answers the others.
+            let (job, schedule, stop) = (&job, &schedule, &stop);
+            s.spawn(move || {
+                while !stop.load(Ordering::Relaxed) && !cancel.load(Ordering::Relaxed) {
+                    let batch = lock(schedule).next_batch(0, MAX_BATCH);
+                    if batch.is_empty() {
+                        break;
+                    }
+                    let t = Instant::now();
+                    let parts = worker::render_chunks(scene, job, &batch);
+                    if to_me.send((parts, t.elapsed().as_secs_f64())).is_err() {
+                        break;
+                    }
                 }
-                match env.tag {
-                    Tag::Ready => {
-                        if wire::decode_frame(&env.bytes).ok() != Some(self.frame) {
-                            continue;
+            });
+            let mut local_done = false;
+            loop {
+                // Wait a little for rank 0's own chunks (this is also the poll interval of
+                // the other ranks' messages: no busy loop beside the rendering threads).
+                let mut first = if local_done {
+                    std::thread::sleep(POLL);
+                    Err(mpsc::RecvTimeoutError::Timeout)
+                } else {
+                    local.recv_timeout(POLL)
+                };
+                loop {
+                    let next =
+                        match std::mem::replace(&mut first, Err(mpsc::RecvTimeoutError::Timeout)) {
+                            Ok(x) => Ok(x),
+                            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                                Err(mpsc::TryRecvError::Disconnected)
+                            }
+                            Err(mpsc::RecvTimeoutError::Timeout) => local.try_recv(),
+                        };
+                    match next {
+                        Ok((parts, secs)) => {
+                            let rr = &mut report.ranks[0];
+                            rr.chunks += parts.len();
+                            rr.render_seconds += secs;
+                            for (id, f) in &parts {
+                                wire::paste_chunk(grid, *id, &f.rgba8, &f.depth, &mut frame);
+                                rr.primary_rays += f.rays.primary;
+                                rays[0] += f.rays.primary;
+                                rays[1] += f.rays.transparency;
+                                rays[2] += f.rays.shadow;
+                                counts.add(&f.counts);
+                            }
+                        }
+                        Err(mpsc::TryRecvError::Empty) => break,
+                        Err(mpsc::TryRecvError::Disconnected) => {
+                            local_done = true;
+                            break;
                         }
                     }
-                    Tag::Result => {
-                        let t = Instant::now();
-                        let res = BatchResult::decode(&env.bytes, grid)
-                            .with_context(|| format!("rank {r} sent a bad result"))?;
-                        if res.frame != self.frame {
-                            continue;
-                        }
-                        if frame.rgba8.is_empty() {
-                            size_frame(&mut frame, grid);
-                        }
-                        res.paste_into(grid, &mut frame);
-                        report.gather_bytes += env.bytes.len() as u64;
-                        report.gather_seconds += t.elapsed().as_secs_f64();
-                        let rr = &mut report.ranks[r];
-                        rr.chunks += res.chunks.len();
-                        rr.primary_rays += res.rays[0];
-                        rr.render_seconds += res.render_ns as f64 * 1e-9;
-                        for (a, b) in rays.iter_mut().zip(res.rays) {
-                            *a += b;
-                        }
-                    }
-                    Tag::Error => {
-                        peers[r] = Peer::Done;
-                        if error.is_none() {
-                            error =
-                                Some(anyhow!("rank {r}: {}", String::from_utf8_lossy(&env.bytes)));
-                        }
-                        stopped = true;
+                }
+                // Answer every message that has arrived.
+                while let Some(env) = link.try_recv() {
+                    let r = env.from;
+                    if r == 0 || r >= ranks {
                         continue;
                     }
-                    _ => continue,
+                    match env.tag {
+                        Tag::Ready => {
+                            if wire::decode_frame(&env.bytes).ok() != Some(number) {
+                                continue;
+                            }
+                        }
+                        Tag::Result => {
+                            let t = Instant::now();
+                            let res = match BatchResult::decode(&env.bytes, grid) {
+                                Ok(res) => res,
+                                Err(e) => return Err(anyhow!("rank {r} sent a bad result: {e}")),
+                            };
+                            if res.frame != number {
+                                continue;
+                            }
+                            res.paste_into(grid, &mut frame);
+                            report.gather_bytes += env.bytes.len() as u64;
+                            report.gather_seconds += t.elapsed().as_secs_f64();
+                            let rr = &mut report.ranks[r];
+                            rr.chunks += res.chunks.len();
+                            rr.primary_rays += res.rays[0];
+                            rr.render_seconds += res.render_ns as f64 * 1e-9;
+                            for (a, b) in rays.iter_mut().zip(res.rays) {
+                                *a += b;
+                            }
+                        }
+                        Tag::Error => {
+                            peers[r] = Peer::Done;
+                            stop.store(true, Ordering::Relaxed);
+                            return Err(anyhow!(
+                                "rank {r}: {}",
+                                String::from_utf8_lossy(&env.bytes)
+                            ));
+                        }
+                        _ => continue,
+                    }
+                    if peers[r] == Peer::Done {
+                        continue;
+                    }
+                    let batch = if stop.load(Ordering::Relaxed) || cancel.load(Ordering::Relaxed) {
+                        Vec::new()
+                    } else {
+                        lock(schedule).next_batch(r, MAX_BATCH)
+                    };
+                    link.send(r, Tag::Batch, &wire::encode_batch(number, &batch));
+                    peers[r] = if batch.is_empty() {
+                        Peer::Done
+                    } else {
+                        Peer::Waiting(Instant::now())
+                    };
                 }
-                if peers[r] == Peer::Done {
-                    continue;
+                if local_done && peers.iter().all(|p| *p == Peer::Done) {
+                    return Ok(());
                 }
-                let batch = if stopped || cancel.load(std::sync::atomic::Ordering::Relaxed) {
-                    Vec::new()
-                } else {
-                    schedule.next_batch(r, MAX_BATCH)
-                };
-                self.link
-                    .send(r, Tag::Batch, &wire::encode_batch(self.frame, &batch));
-                peers[r] = if batch.is_empty() {
-                    Peer::Done
-                } else {
-                    Peer::Waiting(Instant::now())
-                };
-            }
-            if cancel.load(std::sync::atomic::Ordering::Relaxed) {
-                stopped = true;
-            }
-            // Rank 0's own share, one chunk at a time.
-            let mine = if stopped {
-                Vec::new()
-            } else {
-                schedule.next_batch(0, 1)
-            };
-            if let Some(&id) = mine.first() {
-                if frame.rgba8.is_empty() {
-                    size_frame(&mut frame, grid);
+                if let Some((r, _)) = peers
+                    .iter()
+                    .enumerate()
+                    .find(|(_, p)| matches!(p, Peer::Waiting(since) if since.elapsed() > timeout))
+                {
+                    stop.store(true, Ordering::Relaxed);
+                    hung = true;
+                    return Err(anyhow!(
+                        "rank {r} sent no tile results for {:.1} s (--mpi-timeout); it may have died or hung",
+                        timeout.as_secs_f64()
+                    ));
                 }
-                let part = RenderSettings {
-                    region: Some(grid.region(id)),
-                    ..job.settings.clone()
-                };
-                let t = Instant::now();
-                if !scene.render_local_into(camera, &part, cancel, &mut frame) {
-                    stopped = true;
-                    continue;
-                }
-                let rr = &mut report.ranks[0];
-                rr.chunks += 1;
-                rr.primary_rays += frame.rays.primary;
-                rr.render_seconds += t.elapsed().as_secs_f64();
-                rays[0] += frame.rays.primary;
-                rays[1] += frame.rays.transparency;
-                rays[2] += frame.rays.shadow;
-                counts.add(&frame.counts);
-                continue;
             }
-            if peers.iter().all(|p| *p == Peer::Done) {
-                break;
-            }
-            if let Some((r, _)) = peers
-                .iter()
-                .enumerate()
-                .find(|(_, p)| matches!(p, Peer::Waiting(since) if since.elapsed() > self.timeout))
-            {
-                self.hung = true;
-                bail!(
-                    "rank {r} sent no tile results for {:.1} s (--mpi-timeout); it may have died or hung",
-                    self.timeout.as_secs_f64()
-                );
-            }
-            std::thread::sleep(Duration::from_micros(50));
-        }
-        if let Some(e) = error {
+        });
+        if let Err(e) = outcome {
+            self.hung = hung;
+            // The others may still answer this frame; they are told to stop (or aborted)
+            // with the job.
             return Err(e);
         }
-        if stopped || schedule.remaining() > 0 {
+        if cancel.load(Ordering::Relaxed) || lock(&schedule).remaining() > 0 {
             return Ok(None);
-        }
-        if frame.rgba8.is_empty() {
-            size_frame(&mut frame, grid);
         }
         frame.rays.primary = rays[0];
         frame.rays.transparency = rays[1];
@@ -377,7 +427,7 @@ impl Cluster {
         frame.counts = counts;
         frame.elapsed = start.elapsed();
         report.seconds = frame.elapsed.as_secs_f64();
-        self.history = Some((grid, schedule.owners().to_vec()));
+        self.history = Some((grid, lock(&schedule).owners().to_vec()));
         self.last = Some(report);
         Ok(Some(frame))
     }
@@ -393,6 +443,10 @@ impl Cluster {
     pub fn abort(&self, code: i32) {
         self.link.abort(code);
     }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 fn size_frame(frame: &mut Frame, grid: ChunkGrid) {

@@ -3,8 +3,8 @@
 //! MPI is initialized asking for `MPI_THREAD_MULTIPLE` and accepted from
 //! `MPI_THREAD_SERIALIZED` up: the viewer renders from a job thread, not from the thread
 //! that initialized MPI, and calls are serialized by a lock here. Messages are byte
-//! vectors with the [`Tag`] as MPI tag; rank 0 polls with `MPI_Improbe`, workers block in
-//! `MPI_Mprobe`.
+//! vectors with the [`Tag`] as MPI tag, received with `MPI_Improbe` (polling: a blocking
+//! probe spins a core).
 
 use std::sync::Mutex;
 
@@ -74,22 +74,13 @@ impl Link for MpiLink {
     }
 
     fn recv(&self) -> Option<Envelope> {
-        // Workers only: they make no other MPI calls meanwhile, so blocking under the lock
-        // is safe.
-        let _guard = self.calls.lock();
-        let world = SimpleCommunicator::world();
+        // Polls rather than blocking in MPI_Mprobe, which spins a core at 100 % in OpenMPI
+        // and would take it from the rendering threads of a rank sharing the node.
         loop {
-            let (bytes, status) = world
-                .any_process()
-                .matched_probe()
-                .matched_receive_vec::<u8>();
-            if let Some(tag) = Tag::from_i32(status.tag()) {
-                return Some(Envelope {
-                    from: status.source_rank() as usize,
-                    tag,
-                    bytes,
-                });
+            if let Some(e) = self.try_recv() {
+                return Some(e);
             }
+            std::thread::sleep(std::time::Duration::from_micros(100));
         }
     }
 

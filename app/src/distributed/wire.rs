@@ -116,34 +116,32 @@ pub struct BatchResult {
 const RESULT_HEADER: usize = 8 + 8 + 24 + 4;
 
 impl BatchResult {
-    /// Copies `chunks`' regions out of `frame` (rendered at `grid`'s size).
-    pub fn from_frame(
+    /// The result of rendering `chunks`, each into its own frame (its region's pixels, as
+    /// [`RenderSettings::region`] renders them).
+    pub fn from_chunks(
         frame_number: u64,
         grid: ChunkGrid,
-        chunks: &[u32],
-        frame: &Frame,
+        chunks: &[(u32, Frame)],
         render_ns: u64,
-        rays: [u64; 3],
     ) -> Self {
-        let mut rgba8 = Vec::new();
-        let mut depth = Vec::new();
-        let w = grid.width as usize;
-        for &id in chunks {
-            let r = grid.region(id);
-            let (x0, x1) = (r.x[0] as usize, r.x[1] as usize);
-            for y in r.y[0] as usize..r.y[1] as usize {
-                rgba8.extend_from_slice(&frame.rgba8[4 * (y * w + x0)..4 * (y * w + x1)]);
-                depth.extend_from_slice(&frame.depth[y * w + x0..y * w + x1]);
-            }
-        }
-        Self {
+        let mut out = Self {
             frame: frame_number,
             render_ns,
-            rays,
-            chunks: chunks.to_vec(),
-            rgba8,
-            depth,
+            rays: [0; 3],
+            chunks: Vec::with_capacity(chunks.len()),
+            rgba8: Vec::new(),
+            depth: Vec::new(),
+        };
+        for (id, f) in chunks {
+            debug_assert_eq!(f.depth.len(), grid.region(*id).pixels());
+            out.chunks.push(*id);
+            out.rgba8.extend_from_slice(&f.rgba8);
+            out.depth.extend_from_slice(&f.depth);
+            out.rays[0] += f.rays.primary;
+            out.rays[1] += f.rays.transparency;
+            out.rays[2] += f.rays.shadow;
         }
+        out
     }
 
     pub fn encode(&self) -> Vec<u8> {
@@ -165,8 +163,9 @@ impl BatchResult {
         out
     }
 
-    /// Decodes a result for a frame of `grid`, checking every length against it.
-    pub fn decode(bytes: &[u8], grid: ChunkGrid) -> Result<Self, WireError> {
+    /// Decodes a result for a frame of `grid`, checking every length against it. The pixels
+    /// stay in `bytes` until pasted (one pass over them on rank 0).
+    pub fn decode(bytes: &[u8], grid: ChunkGrid) -> Result<BatchView<'_>, WireError> {
         let short = || WireError::Short {
             what: "a batch result",
             len: bytes.len(),
@@ -175,9 +174,6 @@ impl BatchResult {
             return Err(short());
         }
         let u64_at = |i: usize| u64::from_le_bytes(bytes[i..i + 8].try_into().expect("8 bytes"));
-        let frame = u64_at(0);
-        let render_ns = u64_at(8);
-        let rays = [u64_at(16), u64_at(24), u64_at(32)];
         let n = u32::from_le_bytes(bytes[40..44].try_into().expect("4 bytes")) as usize;
         let ids_end = RESULT_HEADER
             .checked_add(n.checked_mul(4).ok_or_else(short)?)
@@ -201,20 +197,30 @@ impl BatchResult {
         if bytes.len() != rgba_end + 4 * pixels {
             return Err(short());
         }
-        let depth = bytes[rgba_end..]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-            .collect();
-        Ok(Self {
-            frame,
-            render_ns,
-            rays,
+        Ok(BatchView {
+            frame: u64_at(0),
+            render_ns: u64_at(8),
+            rays: [u64_at(16), u64_at(24), u64_at(32)],
             chunks,
-            rgba8: bytes[ids_end..rgba_end].to_vec(),
-            depth,
+            rgba8: &bytes[ids_end..rgba_end],
+            depth_le: &bytes[rgba_end..],
         })
     }
+}
 
+/// A received [`BatchResult`], its pixels still in the message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BatchView<'a> {
+    pub frame: u64,
+    pub render_ns: u64,
+    pub rays: [u64; 3],
+    pub chunks: Vec<u32>,
+    rgba8: &'a [u8],
+    /// Little-endian f32 depths.
+    depth_le: &'a [u8],
+}
+
+impl BatchView<'_> {
     /// Writes the chunks' pixels into `frame` (sized for `grid`).
     pub fn paste_into(&self, grid: ChunkGrid, frame: &mut Frame) {
         let w = grid.width as usize;
@@ -226,12 +232,31 @@ impl BatchResult {
             for y in r.y[0] as usize..r.y[1] as usize {
                 frame.rgba8[4 * (y * w + x0)..4 * (y * w + x1)]
                     .copy_from_slice(&self.rgba8[rgba_at..rgba_at + 4 * n]);
-                frame.depth[y * w + x0..y * w + x1]
-                    .copy_from_slice(&self.depth[depth_at..depth_at + n]);
+                let row = &self.depth_le[depth_at..depth_at + 4 * n];
+                for (d, b) in frame.depth[y * w + x0..y * w + x1]
+                    .iter_mut()
+                    .zip(row.chunks_exact(4))
+                {
+                    *d = f32::from_le_bytes(b.try_into().expect("4 bytes"));
+                }
                 rgba_at += 4 * n;
-                depth_at += n;
+                depth_at += 4 * n;
             }
         }
+    }
+}
+
+/// Writes one chunk's pixels (its region's rows, RGBA8 and depth) into `frame` (sized for
+/// `grid`).
+pub fn paste_chunk(grid: ChunkGrid, id: u32, rgba8: &[u8], depth: &[f32], frame: &mut Frame) {
+    let w = grid.width as usize;
+    let r = grid.region(id);
+    let (x0, x1) = (r.x[0] as usize, r.x[1] as usize);
+    let n = x1 - x0;
+    for (k, y) in (r.y[0] as usize..r.y[1] as usize).enumerate() {
+        frame.rgba8[4 * (y * w + x0)..4 * (y * w + x1)]
+            .copy_from_slice(&rgba8[4 * k * n..4 * (k + 1) * n]);
+        frame.depth[y * w + x0..y * w + x1].copy_from_slice(&depth[k * n..(k + 1) * n]);
     }
 }
 
@@ -283,10 +308,34 @@ mod tests {
             ..Frame::default()
         };
         let chunks = [4, 0, 2];
-        let r = BatchResult::from_frame(9, grid, &chunks, &source, 1234, [1, 2, 3]);
+        // Each chunk's frame: its region cut out of the source.
+        let parts: Vec<(u32, Frame)> = chunks
+            .iter()
+            .map(|&id| {
+                let r = grid.region(id);
+                let mut f = Frame {
+                    width: r.x[1] - r.x[0],
+                    height: r.y[1] - r.y[0],
+                    ..Frame::default()
+                };
+                f.rays.primary = 1;
+                for y in r.y[0]..r.y[1] {
+                    let row = (y * grid.width) as usize;
+                    let (a, b) = (row + r.x[0] as usize, row + r.x[1] as usize);
+                    f.rgba8.extend_from_slice(&source.rgba8[4 * a..4 * b]);
+                    f.depth.extend_from_slice(&source.depth[a..b]);
+                }
+                (id, f)
+            })
+            .collect();
+        let r = BatchResult::from_chunks(9, grid, &parts, 1234);
+        assert_eq!(r.rays, [3, 0, 0]);
         let bytes = r.encode();
         let back = BatchResult::decode(&bytes, grid).unwrap();
-        assert_eq!(back, r);
+        assert_eq!(
+            (back.frame, back.render_ns, back.rays, &back.chunks),
+            (r.frame, r.render_ns, r.rays, &r.chunks)
+        );
         let mut out = Frame {
             rgba8: vec![0; pixels * 4],
             depth: vec![-1.0; pixels],

@@ -3,13 +3,14 @@
 //!
 //! Each frame's job sets the worker's scene to rank 0's state (time step, mesh field,
 //! intersector, normals) before any ray is traced; a failure there is sent back as the
-//! frame's error. Chunks are rendered into one frame-sized buffer that is kept between
-//! batches and frames (no allocation per chunk), and only their pixels travel back.
+//! frame's error. The chunks of a batch are rendered in parallel, each into a frame of its own
+//! size, and only their pixels travel back.
 
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
+use rayon::prelude::*;
 use volume_core::render::{Frame, RenderSettings};
 
 use super::link::{Link, Tag};
@@ -57,8 +58,6 @@ pub fn serve_none(link: &dyn Link, why: &str) {
 
 /// Renders what rank 0 asks until it says quit (or the link is gone).
 pub fn serve(link: &dyn Link, scene: &mut AnyScene) {
-    let never = AtomicBool::new(false);
-    let mut frame = Frame::default();
     let mut job: Option<FrameJob> = None;
     while let Some(env) = link.recv() {
         match env.tag {
@@ -90,37 +89,39 @@ pub fn serve(link: &dyn Link, scene: &mut AnyScene) {
                 }
                 let grid = j.grid();
                 let start = Instant::now();
-                let mut rays = [0u64; 3];
-                for &id in &chunks {
-                    if id as usize >= grid.len() {
-                        continue;
-                    }
-                    let part = RenderSettings {
-                        region: Some(grid.region(id)),
-                        ..j.settings.clone()
-                    };
-                    scene.render_local_into(&j.camera, &part, &never, &mut frame);
-                    rays[0] += frame.rays.primary;
-                    rays[1] += frame.rays.transparency;
-                    rays[2] += frame.rays.shadow;
-                }
-                let chunks: Vec<u32> = chunks
-                    .into_iter()
-                    .filter(|&id| (id as usize) < grid.len())
-                    .collect();
-                let result = BatchResult::from_frame(
+                let parts = render_chunks(scene, j, &chunks);
+                let result = BatchResult::from_chunks(
                     number,
                     grid,
-                    &chunks,
-                    &frame,
+                    &parts,
                     start.elapsed().as_nanos() as u64,
-                    rays,
                 );
                 link.send(0, Tag::Result, &result.encode());
             }
             _ => {}
         }
     }
+}
+
+/// Renders `chunks` of `job`'s frame in parallel, each into its own frame (ids outside the
+/// frame are skipped). Chunks, not just the bands inside one, are what the threads share,
+/// so that a rank with many cores keeps them busy.
+pub fn render_chunks(scene: &AnyScene, job: &FrameJob, chunks: &[u32]) -> Vec<(u32, Frame)> {
+    let grid = job.grid();
+    let never = AtomicBool::new(false);
+    chunks
+        .par_iter()
+        .filter(|&&id| (id as usize) < grid.len())
+        .map(|&id| {
+            let part = RenderSettings {
+                region: Some(grid.region(id)),
+                ..job.settings.clone()
+            };
+            let mut f = Frame::default();
+            scene.render_local_into(&job.camera, &part, &never, &mut f);
+            (id, f)
+        })
+        .collect()
 }
 
 /// Puts `scene` in the state `job` was made in.

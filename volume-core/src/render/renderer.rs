@@ -143,8 +143,7 @@ pub fn render<S: IsoScene>(
 /// [`render`] into an existing frame, reusing its buffers (no allocation once they are big
 /// enough: interactive callers keep one or two frames and render into them). Supersampling
 /// (`settings.supersample > 1`) is the exception: it allocates the `k`-times larger frame on
-/// each call (kept per thread between calls that render a `region`), which is meant for still
-/// frames and image outputs, not for interaction.
+/// each call, which is meant for still frames and image outputs, not for interaction.
 ///
 /// Returns `false` if `cancel` was set before the frame finished; the frame's contents are
 /// then unspecified (partly the new picture), but it stays a valid buffer to render into
@@ -185,23 +184,12 @@ pub fn render_colored_into<S: IsoScene>(
             }),
             ..settings.clone()
         };
-        // The fine frame is kept per thread: a sort-first rank renders many regions of one
-        // frame, each of which would otherwise allocate and clear the whole fine frame.
-        thread_local! {
-            static FINE: std::cell::RefCell<Frame> = std::cell::RefCell::new(Frame::default());
+        let mut fine = Frame::default();
+        if !render_colored_into(scene, camera, &fine_settings, colorings, cancel, &mut fine) {
+            return false;
         }
-        let mut fine = FINE.with(std::cell::RefCell::take);
-        if fine.width != fine_settings.width || fine.height != fine_settings.height {
-            fine = Frame::default();
-        }
-        let done = render_colored_into(scene, camera, &fine_settings, colorings, cancel, &mut fine);
-        if done {
-            crate::render::supersample::downsample_into(&fine, k, settings.region, frame);
-        }
-        if settings.region.is_some() {
-            FINE.with(|f| f.replace(fine));
-        }
-        return done;
+        crate::render::supersample::downsample_into(&fine, k, frame);
+        return true;
     }
     let shadows = settings.shadows && Shader::new(&settings.light).casts_shadows();
     let c = colorings;
@@ -240,6 +228,9 @@ struct Ctx<'a, I> {
     max_layers: u32,
     /// `(dx, dy)` of a tile's samples in Morton order.
     order: Vec<[u32; 2]>,
+    /// The frame's first tile column (0 unless a region is rendered) and its width in pixels.
+    tile_x0: u32,
+    frame_width: u32,
 }
 
 /// One sample's progress through the rounds (its ray is `Scratch::tile_rays[pos]`).
@@ -357,15 +348,22 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let (width, height) = (settings.width, settings.height);
     let scale = settings.scale.max(1);
     let samples = [width.div_ceil(scale), height.div_ceil(scale)];
-    // The tiles to render: all, or those overlapping `settings.region`.
+    // The tiles to render: all, or those overlapping `settings.region`; the frame holds
+    // exactly their pixels.
     let tile_px = TILE * scale;
     let (tiles_x, tiles_y) = match settings.region {
         None => (0..samples[0].div_ceil(TILE), 0..samples[1].div_ceil(TILE)),
         Some(r) => (
-            r.x[0] / tile_px..r.x[1].min(width).div_ceil(tile_px),
-            r.y[0] / tile_px..r.y[1].min(height).div_ceil(tile_px),
+            (r.x[0] / tile_px).min(samples[0].div_ceil(TILE))..r.x[1].min(width).div_ceil(tile_px),
+            (r.y[0] / tile_px).min(samples[1].div_ceil(TILE))..r.y[1].min(height).div_ceil(tile_px),
         ),
     };
+    let span = |tiles: &std::ops::Range<u32>, side: u32| {
+        (tiles.end * tile_px)
+            .min(side)
+            .saturating_sub(tiles.start * tile_px)
+    };
+    let (frame_w, frame_h) = (span(&tiles_x, width), span(&tiles_y, height));
     let (isovalues, surface_of) = settings.active_isovalues();
     let bounds = scene.world_bounds();
     let diag = if bounds.is_empty() {
@@ -393,17 +391,19 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         samples,
         max_layers: settings.max_layers.max(1),
         order: morton_order(),
+        tile_x0: tiles_x.start,
+        frame_width: frame_w,
     };
 
-    let pixels = width as usize * height as usize;
-    frame.width = width;
-    frame.height = height;
+    let pixels = frame_w as usize * frame_h as usize;
+    frame.width = frame_w;
+    frame.height = frame_h;
     frame.scale = scale;
     // Every pixel is written below: resizing (not clearing) is enough.
     frame.rgba8.resize(pixels * 4, 0);
     frame.depth.resize(pixels, f32::INFINITY);
     let band_rows = TILE as usize * scale as usize;
-    let row_len = width as usize;
+    let row_len = frame_w as usize;
     let tally = if pixels == 0 {
         Some(Tally::<St>::new())
     } else {
@@ -413,11 +413,8 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
             .zip(frame.depth.par_chunks_mut(band_rows * row_len))
             .enumerate()
             .map_init(Scratch::default, |sc, (index, (rgba8, depth))| {
-                if !tiles_y.contains(&(index as u32)) {
-                    return Some(Tally::<St>::new());
-                }
                 let mut band = Band {
-                    index: index as u32,
+                    index: tiles_y.start + index as u32,
                     rgba8,
                     depth,
                 };
@@ -726,9 +723,9 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     // 3. The tile's pixels: the background (and no depth) everywhere, then the samples
     //    with a hit composited over it, straight into the band.
     let bg = Vec3::from(settings.background);
-    let row_len = settings.width as usize;
+    let row_len = ctx.frame_width as usize;
     let band_rows = band.depth.len() / row_len;
-    let x_tile = (tile[0] * TILE) as usize;
+    let x_tile = ((tile[0] - ctx.tile_x0) * TILE) as usize;
     let step = ctx.scale as usize;
     // `0 + bg · 1` is `bg`: converted once per tile.
     let bg_rgba = [to_u8(bg.x), to_u8(bg.y), to_u8(bg.z), 255];
@@ -1469,8 +1466,9 @@ mod tests {
                 ..RenderSettings::default()
             };
             let whole = render(&scene, &cam, &settings, &go()).unwrap();
-            // Regions of 2×1 tiles, rendered into one frame in reverse order; the frame
-            // starts as junk so that a pixel left unwritten would show.
+            // Regions of 2×1 tiles, each rendered into its own frame and pasted where it
+            // belongs; the assembled frame starts as junk so that a pixel left unwritten
+            // would show.
             let side = TILE * scale;
             let mut assembled = Frame {
                 rgba8: vec![7; whole.rgba8.len()],
@@ -1478,55 +1476,59 @@ mod tests {
                 ..Frame::default()
             };
             let mut primary = 0;
-            let mut regions = Vec::new();
+            let mut part_frame = Frame::default();
             for y0 in (0..h).step_by(side as usize) {
                 for x0 in (0..w).step_by(2 * side as usize) {
-                    regions.push(PixelRegion {
+                    let region = PixelRegion {
                         x: [x0, (x0 + 2 * side).min(w)],
                         y: [y0, (y0 + side).min(h)],
-                    });
+                    };
+                    let part = RenderSettings {
+                        region: Some(region),
+                        ..settings.clone()
+                    };
+                    assert_eq!(part.validate(), Ok(()));
+                    assert!(render_into(&scene, &cam, &part, &go(), &mut part_frame));
+                    let (pw, ph) = (region.x[1] - region.x[0], region.y[1] - region.y[0]);
+                    assert_eq!((part_frame.width, part_frame.height), (pw, ph));
+                    primary += part_frame.rays.primary;
+                    for y in 0..ph {
+                        for x in 0..pw {
+                            let src = (y * pw + x) as usize;
+                            let dst = ((y0 + y) * w + x0 + x) as usize;
+                            assembled.rgba8[4 * dst..4 * dst + 4]
+                                .copy_from_slice(&part_frame.rgba8[4 * src..4 * src + 4]);
+                            assembled.depth[dst] = part_frame.depth[src];
+                        }
+                    }
                 }
-            }
-            for region in regions.iter().rev() {
-                let part = RenderSettings {
-                    region: Some(*region),
-                    ..settings.clone()
-                };
-                assert_eq!(part.validate(), Ok(()));
-                assert!(render_into(&scene, &cam, &part, &go(), &mut assembled));
-                primary += assembled.rays.primary;
             }
             assert_eq!(assembled.rgba8, whole.rgba8, "{w}x{h} scale {scale}");
             let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&assembled.depth), bits(&whole.depth));
             assert_eq!(primary, whole.rays.primary);
-            // One region alone writes only its own pixels.
-            let one = PixelRegion {
-                x: [side, 2 * side],
-                y: [0, side],
-            };
-            let mut partial = Frame {
-                rgba8: vec![7; whole.rgba8.len()],
-                depth: vec![-1.0; whole.depth.len()],
-                ..Frame::default()
-            };
-            let part = RenderSettings {
-                region: Some(one),
+            // A region off the tile grid is widened to the tiles it overlaps (of the
+            // supersampled image when supersampling, so only checked without).
+            if supersample > 1 {
+                continue;
+            }
+            let odd = RenderSettings {
+                region: Some(PixelRegion {
+                    x: [side + 3, side + 5],
+                    y: [1, 2],
+                }),
                 ..settings.clone()
             };
-            assert!(render_into(&scene, &cam, &part, &go(), &mut partial));
-            for j in 0..h {
-                for i in 0..w {
-                    let inside =
-                        (one.x[0]..one.x[1]).contains(&i) && (one.y[0]..one.y[1]).contains(&j);
-                    let p = (j * w + i) as usize;
-                    if inside {
-                        assert_eq!(pixel(&partial, i, j), pixel(&whole, i, j));
-                    } else {
-                        assert_eq!(partial.depth[p], -1.0, "pixel {i},{j} outside the region");
-                    }
-                }
-            }
+            assert!(render_into(&scene, &cam, &odd, &go(), &mut part_frame));
+            assert_eq!(
+                (part_frame.width, part_frame.height),
+                (side.min(w - side), side.min(h))
+            );
+            assert_eq!(
+                pixel(&part_frame, 0, 0),
+                pixel(&whole, side, 0),
+                "the frame starts at the tile's corner"
+            );
         }
         let bad = RenderSettings {
             width: 10,

@@ -190,15 +190,15 @@ pub struct RenderSettings {
     /// Anti-aliasing at full resolution (`scale` 1): `supersample²` samples per pixel,
     /// averaged ([`crate::render::supersample`]); 1 is off.
     pub supersample: u32,
-    /// Render only the tiles that overlap this part of the image (pbrt's pixel bounds); the
-    /// other pixels of the frame keep what they held. Sort-first distribution renders each
-    /// rank's tiles this way; `None` is the whole image.
+    /// Render only the tiles that overlap this part of the image (pbrt's crop window): the
+    /// frame then holds just their pixels, as they are in the whole image. Sort-first
+    /// distribution renders each rank's chunks this way; `None` is the whole image.
     pub region: Option<PixelRegion>,
 }
 
 /// A half-open rectangle of pixels, `x[0] <= x < x[1]`, `y[0] <= y < y[1]`, row 0 at the top.
-/// When its corners are multiples of the tile side times the progressive scale, exactly these
-/// pixels are rendered; otherwise every tile it overlaps is.
+/// When its corners are multiples of the tile side (16) times the progressive scale (or the
+/// image's edges), the frame is exactly these pixels; otherwise it is every tile it overlaps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PixelRegion {
     pub x: [u32; 2],

@@ -6,43 +6,26 @@
 //! first hit of its samples: the pixel shows a surface wherever one of its samples does.
 
 use crate::render::renderer::Frame;
-use crate::render::settings::PixelRegion;
 
 /// Largest accepted supersampling factor per axis (64 samples per pixel).
 pub const MAX_SUPERSAMPLE: u32 = 8;
 
 /// Averages each `k × k` block of `fine` (`k` times `coarse`'s size on each axis) into one
-/// pixel of `coarse`, keeping `fine`'s statistics and time. With a `region`, only its pixels
-/// are written.
-pub(crate) fn downsample_into(
-    fine: &Frame,
-    k: u32,
-    region: Option<PixelRegion>,
-    coarse: &mut Frame,
-) {
+/// pixel of `coarse`, keeping `fine`'s statistics and time.
+pub(crate) fn downsample_into(fine: &Frame, k: u32, coarse: &mut Frame) {
     let (w, h) = (fine.width / k, fine.height / k);
     let (w_us, k_us) = (w as usize, k as usize);
     let fine_w = fine.width as usize;
     coarse.width = w;
     coarse.height = h;
     coarse.scale = 1;
-    if region.is_none() {
-        coarse.rgba8.clear();
-        coarse.depth.clear();
-    }
-    // With a region, the pixels outside it keep what they held.
+    coarse.rgba8.clear();
     coarse.rgba8.resize(w_us * h as usize * 4, 0);
+    coarse.depth.clear();
     coarse.depth.resize(w_us * h as usize, f32::INFINITY);
-    let (xs, ys) = match region {
-        None => (0..w_us, 0..h as usize),
-        Some(r) => (
-            r.x[0] as usize..(r.x[1].min(w) as usize),
-            r.y[0] as usize..(r.y[1].min(h) as usize),
-        ),
-    };
     let samples = k * k;
-    for y in ys {
-        for x in xs.clone() {
+    for y in 0..h as usize {
+        for x in 0..w_us {
             let mut sum = [0u32; 4];
             let mut nearest = f32::INFINITY;
             for sy in 0..k_us {
@@ -93,7 +76,7 @@ mod tests {
             f32::INFINITY,
         ];
         let mut coarse = Frame::default();
-        downsample_into(&fine, 2, None, &mut coarse);
+        downsample_into(&fine, 2, &mut coarse);
         assert_eq!((coarse.width, coarse.height), (2, 1));
         // Pixel 0: samples 0, 1, 4, 5 = 0, 255, 255, 255 → 191.25 → 191.
         assert_eq!(coarse.rgba8[0], 191);
