@@ -149,11 +149,26 @@ fn last_error(app: &ViewerApp) -> Option<String> {
         .map(|n| n.text.clone())
 }
 
+// Two shards, each its own viewer, so that the two run on both cores (one viewer steps on
+// one thread most of the time).
 #[cfg(unix)]
 #[test]
-fn every_corpus_file_gives_a_notification_and_the_viewer_keeps_running() {
+fn every_corpus_file_gives_a_notification_and_the_viewer_keeps_running_even_cases() {
+    corpus_shard(0);
+}
+
+#[cfg(unix)]
+#[test]
+fn every_corpus_file_gives_a_notification_and_the_viewer_keeps_running_odd_cases() {
+    corpus_shard(1);
+}
+
+/// Opens every other case of the corpus (`shard` 0: even indices, 1: odd) in one viewer.
+fn corpus_shard(shard: usize) {
     let dir = tempfile::tempdir().unwrap();
-    let cases = write_corpus(dir.path()).unwrap();
+    let all = write_corpus(dir.path()).unwrap();
+    let cases: Vec<&Case> = all.iter().skip(shard).step_by(2).collect();
+    assert!(cases.len() > 400, "{} cases", cases.len());
     // Error notifications quote file contents and names, decoded lossily: U+FFFD and any
     // other character can appear. The viewer (egui's default policy) draws a box for a
     // character no font has; kittest panics by default, so use the viewer's policy.
@@ -168,7 +183,7 @@ fn every_corpus_file_gives_a_notification_and_the_viewer_keeps_running() {
 
     let start = Instant::now();
     let mut failures = Vec::new();
-    for case in &cases {
+    for &case in &cases {
         if let Err(e) = open_case(&mut h, case) {
             failures.push(format!("{}: {e}", case.name));
         }
@@ -182,7 +197,7 @@ fn every_corpus_file_gives_a_notification_and_the_viewer_keeps_running() {
     );
 
     // After the whole corpus, a valid file still opens and a frame of it is shown.
-    let valid = cases
+    let valid = all
         .iter()
         .find(|c| c.expect == Expect::Renders && c.name == "nrrd_raw_u8")
         .expect("the corpus has nrrd_raw_u8");
@@ -195,7 +210,7 @@ fn every_corpus_file_gives_a_notification_and_the_viewer_keeps_running() {
     })
     .unwrap();
     eprintln!(
-        "viewer: {} cases in {:.0} s",
+        "viewer, shard {shard}: {} cases in {:.0} s",
         cases.len(),
         start.elapsed().as_secs_f64()
     );

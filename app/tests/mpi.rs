@@ -235,6 +235,11 @@ fn a_rank_that_dies_mid_job_ends_it_with_an_error_instead_of_a_hang() {
     let out = run_limited(cmd, Duration::from_mins(1));
     assert!(!out.status.success());
     assert!(start.elapsed() < Duration::from_secs(40));
+    // Either our timeout names the rank, or OpenMPI ends the job first, naming the process
+    // of rank 1 as `[[JOB,1],1]`.
     let t = text(&out);
-    assert!(t.contains("rank 1") || t.contains("rank 1 "), "{t}");
+    assert!(
+        t.contains("rank 1 sent no tile results") || t.contains(",1],1]"),
+        "{t}"
+    );
 }

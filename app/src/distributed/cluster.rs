@@ -260,7 +260,8 @@ impl Cluster {
         let mut peers = vec![Peer::Done; ranks];
         for (r, p) in peers.iter_mut().enumerate().skip(1) {
             self.link.send(r, Tag::Job, &bytes);
-            *p = Peer::Waiting(Instant::now());
+            // An out-of-core rank may first wait for its levels: that is not silence.
+            *p = Peer::Waiting(Instant::now() + self.level_wait);
         }
         let previous = self
             .history

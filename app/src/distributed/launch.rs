@@ -1,5 +1,5 @@
 //! `--mpi`: every rank parses the same command line; rank 0 runs the command (or the
-//! viewer) with a [`Cluster`] installed, the others open the same input and serve.
+//! viewer) with a [`super::Cluster`] installed, the others open the same input and serve.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;

@@ -1,4 +1,4 @@
-//! The message link between ranks: MPI in a real job ([`super::mpi_link`], cargo feature
+//! The message link between ranks: MPI in a real job (`mpi_link`, cargo feature
 //! `mpi`), threads and channels in tests ([`LocalLink`]), behind one small trait.
 //!
 //! Every message is a tag and bytes, point to point. Rank 0 polls without blocking (it

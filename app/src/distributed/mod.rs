@@ -48,8 +48,22 @@ use crate::scene::AnyScene;
 /// viewer) rather than fail the frame (the CLI).
 static CLUSTER: Mutex<Option<(Cluster, bool)>> = Mutex::new(None);
 
+/// What [`status`] reports, kept apart from [`CLUSTER`] (which a frame holds while it renders)
+/// so that the viewer's status bar never waits for a frame.
+static STATUS: Mutex<Option<JobStatus>> = Mutex::new(None);
+
+fn set_status(status: Option<JobStatus>) {
+    *STATUS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = status;
+}
+
 /// Makes `cluster` render the frames of its input from now on.
 pub fn install(cluster: Cluster, fallback: bool) {
+    set_status(Some(JobStatus {
+        ranks: cluster.size(),
+        failure: cluster.failure().map(str::to_string),
+    }));
     *CLUSTER
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner) = Some((cluster, fallback));
@@ -57,6 +71,7 @@ pub fn install(cluster: Cluster, fallback: bool) {
 
 /// Removes the installed cluster (to shut it down).
 pub fn uninstall() -> Option<Cluster> {
+    set_status(None);
     CLUSTER
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
@@ -80,11 +95,12 @@ pub struct JobStatus {
     pub failure: Option<String>,
 }
 
+/// Never waits for a frame in progress.
 pub fn status() -> Option<JobStatus> {
-    with_cluster(|c| JobStatus {
-        ranks: c.size(),
-        failure: c.failure().map(str::to_string),
-    })
+    STATUS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .clone()
 }
 
 /// The frame of `scene` rendered by the job, if a job serves `scene`'s input: `Some(None)`
@@ -103,7 +119,14 @@ pub fn render_if_served(
     if !cluster.serves(scene.path()) {
         return None;
     }
-    match cluster.render(scene, camera, settings, cancel) {
+    let result = cluster.render(scene, camera, settings, cancel);
+    if result.is_err() {
+        set_status(Some(JobStatus {
+            ranks: cluster.size(),
+            failure: cluster.failure().map(str::to_string),
+        }));
+    }
+    match result {
         Ok(frame) => Some(frame),
         Err(e) if *fallback => {
             eprintln!(

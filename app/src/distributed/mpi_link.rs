@@ -33,10 +33,17 @@ impl MpiLink {
     }
 }
 
-/// Initializes MPI (once per process); the universe finalizes MPI when dropped.
+/// Room for rank 0's buffered sends: jobs (a few kB) and batches (a few bytes) to every rank,
+/// with a rank that has stopped reading them.
+const SEND_BUFFER_BYTES: usize = 16 << 20;
+
+/// Initializes MPI (once per process) and attaches the buffer of rank 0's sends; the universe
+/// finalizes MPI when dropped (which waits for buffered sends to be delivered: with a rank that
+/// stopped answering, end the job with [`Link::abort`] instead).
 pub fn initialize() -> anyhow::Result<mpi::environment::Universe> {
-    let (universe, level) = mpi::initialize_with_threading(Threading::Multiple)
+    let (mut universe, level) = mpi::initialize_with_threading(Threading::Multiple)
         .ok_or_else(|| anyhow::anyhow!("MPI was already initialized"))?;
+    universe.set_buffer_size(SEND_BUFFER_BYTES);
     if level < Threading::Serialized {
         anyhow::bail!(
             "this MPI library offers thread level {level:?}; Isoscope needs at least Serialized"
@@ -56,9 +63,17 @@ impl Link for MpiLink {
 
     fn send(&self, to: usize, tag: Tag, bytes: &[u8]) {
         let _guard = self.calls.lock();
-        SimpleCommunicator::world()
-            .process_at_rank(to as i32)
-            .send_with_tag(bytes, tag as i32);
+        let world = SimpleCommunicator::world();
+        let process = world.process_at_rank(to as i32);
+        if self.rank == 0 {
+            // Buffered (MPI_Bsend, into the buffer `initialize` attaches): rank 0 must never
+            // block on a rank that has stopped, or it could not notice the silence and fail
+            // the frame (a blocking send waits for the receiver once a message passes the
+            // eager limit or its queue is full).
+            process.buffered_send_with_tag(bytes, tag as i32);
+        } else {
+            process.send_with_tag(bytes, tag as i32);
+        }
     }
 
     fn try_recv(&self) -> Option<Envelope> {

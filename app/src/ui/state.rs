@@ -64,8 +64,17 @@ impl ViewerState {
 
     /// Parses a session; unknown fields are ignored, missing ones take defaults.
     pub fn from_json(text: &str) -> Result<Self, String> {
-        let state: Self =
-            serde_json::from_str(text).map_err(|e| format!("not a session file: {e}"))?;
+        let state: Self = serde_json::from_str(text).map_err(|e| {
+            match e
+                .to_string()
+                .contains("out of range")
+                .then(|| field_beyond_f32(text))
+                .flatten()
+            {
+                Some(field) => format!("not a session file: {field} is not a finite number ({e})"),
+                None => format!("not a session file: {e}"),
+            }
+        })?;
         if state.version > SESSION_VERSION {
             return Err(format!(
                 "session version {} is newer than this viewer ({SESSION_VERSION})",
@@ -420,6 +429,26 @@ impl Default for RawLayoutState {
             spacing: [1.0; 3],
         }
     }
+}
+
+/// The top-level field of a session that holds a number beyond `f32` (which serde_json,
+/// reading floats exactly, refuses for an `f32` field as out of range), to name it.
+fn field_beyond_f32(text: &str) -> Option<String> {
+    fn beyond(v: &serde_json::Value) -> bool {
+        match v {
+            serde_json::Value::Number(n) => {
+                n.as_f64().is_some_and(|x| x.abs() > f64::from(f32::MAX))
+            }
+            serde_json::Value::Array(a) => a.iter().any(beyond),
+            serde_json::Value::Object(o) => o.values().any(beyond),
+            _ => false,
+        }
+    }
+    let v: serde_json::Value = serde_json::from_str(text).ok()?;
+    v.as_object()?
+        .iter()
+        .find(|(_, x)| beyond(x))
+        .map(|(k, _)| k.clone())
 }
 
 #[cfg(test)]
