@@ -307,14 +307,14 @@ impl SceneVisitor for RenderVisitor<'_> {
     type Output = Option<Frame>;
     fn visit<S: IsoScene>(self, scene: &S) -> Option<Frame> {
         let mut frame = Frame::default();
-        render_colored_into(
-            scene,
-            self.camera,
-            self.settings,
-            self.colorings,
-            self.cancel,
-            &mut frame,
-        )
+        RenderIntoVisitor {
+            camera: self.camera,
+            settings: self.settings,
+            colorings: self.colorings,
+            cancel: self.cancel,
+            frame: &mut frame,
+        }
+        .visit(scene)
         .then_some(frame)
     }
 }

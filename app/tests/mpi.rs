@@ -42,6 +42,23 @@ fn mpirun(dir: &Path, ranks: usize, args: &[&str]) -> Output {
     run_limited(cmd, Duration::from_mins(2))
 }
 
+/// Two ranks, each running the shell `script` (which tells the ranks apart by
+/// `$OMPI_COMM_WORLD_RANK`), limited to a minute.
+fn mpirun_sh(dir: &Path, script: &str) -> Output {
+    let mut cmd = Command::new("mpirun");
+    cmd.current_dir(dir)
+        .args([
+            "--allow-run-as-root",
+            "--oversubscribe",
+            "-n",
+            "2",
+            "sh",
+            "-c",
+        ])
+        .arg(script);
+    run_limited(cmd, Duration::from_mins(1))
+}
+
 fn isoscope(dir: &Path, args: &[&str]) -> Output {
     let out = Command::new(BIN)
         .current_dir(dir)
@@ -187,21 +204,13 @@ fn a_rank_that_cannot_open_its_input_ends_the_job_with_an_error_naming_it() {
     std::fs::create_dir(d.join("elsewhere")).unwrap();
     // Rank 1 starts in a folder without the file, as a node without the shared storage.
     let start = Instant::now();
-    let mut cmd = Command::new("mpirun");
-    cmd.current_dir(d)
-        .args([
-            "--allow-run-as-root",
-            "--oversubscribe",
-            "-n",
-            "2",
-            "sh",
-            "-c",
-        ])
-        .arg(format!(
+    let out = mpirun_sh(
+        d,
+        &format!(
             "if [ \"$OMPI_COMM_WORLD_RANK\" = 1 ]; then cd elsewhere; fi; exec {BIN} render \
              ph.nrrd -o out.png --size 64x64 --mpi"
-        ));
-    let out = run_limited(cmd, Duration::from_mins(1));
+        ),
+    );
     assert!(!out.status.success());
     assert!(start.elapsed() < Duration::from_secs(30));
     let t = text(&out);
@@ -217,22 +226,14 @@ fn a_rank_that_dies_mid_job_ends_it_with_an_error_instead_of_a_hang() {
     // Rank 1's isoscope is killed once the job is under way; rank 0 benchmarks many frames
     // and must stop, by MPI noticing the death or by --mpi-timeout, naming the failure.
     let start = Instant::now();
-    let mut cmd = Command::new("mpirun");
-    cmd.current_dir(d)
-        .args([
-            "--allow-run-as-root",
-            "--oversubscribe",
-            "-n",
-            "2",
-            "sh",
-            "-c",
-        ])
-        .arg(format!(
+    let out = mpirun_sh(
+        d,
+        &format!(
             "args='bench ph.nrrd --iso 500 --size 512x512 --frames 100000 --skip-dda --mpi \
              --mpi-timeout 3'; if [ \"$OMPI_COMM_WORLD_RANK\" = 1 ]; then {BIN} $args & \
              pid=$!; sleep 2; kill -9 $pid; wait $pid; exit 9; else exec {BIN} $args; fi"
-        ));
-    let out = run_limited(cmd, Duration::from_mins(1));
+        ),
+    );
     assert!(!out.status.success());
     assert!(start.elapsed() < Duration::from_secs(40));
     // Either our timeout names the rank, or OpenMPI ends the job first, naming the process

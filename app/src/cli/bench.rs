@@ -1219,24 +1219,13 @@ fn format_distributed(r: &DistributedReport) -> String {
     s
 }
 
-pub fn run(args: &Args) -> anyhow::Result<()> {
-    if crate::distributed::status().is_some() {
-        let report = match args.threads {
-            None => measure_distributed(args)?,
-            Some(0) => bail!("--threads must be at least 1"),
-            Some(t) => rayon::ThreadPoolBuilder::new()
-                .num_threads(t)
-                .build()
-                .context("cannot start the thread pool")?
-                .install(|| measure_distributed(args))?,
-        };
-        if args.json {
-            println!("{}", serde_json::to_string(&report)?);
-        } else {
-            print!("{}", format_distributed(&report));
-        }
-        return Ok(());
-    }
+/// Runs `measure` on `--threads` threads (the global pool without the flag) and prints its
+/// report as JSON or text.
+fn report_with<R: Serialize + Send>(
+    args: &Args,
+    measure: fn(&Args) -> anyhow::Result<R>,
+    text: fn(&R) -> String,
+) -> anyhow::Result<()> {
     let report = match args.threads {
         None => measure(args)?,
         Some(0) => bail!("--threads must be at least 1"),
@@ -1249,9 +1238,17 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
     } else {
-        print!("{}", format_report(&report));
+        print!("{}", text(&report));
     }
     Ok(())
+}
+
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if crate::distributed::status().is_some() {
+        report_with(args, measure_distributed, format_distributed)
+    } else {
+        report_with(args, measure, format_report)
+    }
 }
 
 #[cfg(test)]
