@@ -244,3 +244,17 @@ fn a_rank_that_dies_mid_job_ends_it_with_an_error_instead_of_a_hang() {
         "{t}"
     );
 }
+
+#[test]
+fn traversal_statistics_are_refused_with_mpi_rather_than_partial() {
+    let dir = tempfile::tempdir().unwrap();
+    generate(dir.path(), &["phantom", "--size", "32", "-o", "ph.nrrd"]);
+    let out = Command::new(BIN)
+        .current_dir(dir.path())
+        .args(["render", "ph.nrrd", "-o", "o.png", "--stats", "--mpi"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(text(&out).contains("--stats counts the traversal of one process"));
+    assert!(!dir.path().join("o.png").exists());
+}

@@ -15,7 +15,7 @@ use std::sync::{Mutex, MutexGuard, mpsc};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail};
-use volume_core::render::{Camera, Frame, RenderSettings, TraversalCounts};
+use volume_core::render::{Camera, Frame, RenderSettings};
 
 use super::link::{Envelope, Link, Tag};
 use super::schedule::{ChunkGrid, Schedule};
@@ -36,12 +36,6 @@ pub struct RankReport {
     pub primary_rays: u64,
     /// Time the rank spent rendering.
     pub render_seconds: f64,
-}
-
-impl RankReport {
-    pub fn rays_per_second(&self) -> f64 {
-        self.primary_rays as f64 / self.render_seconds.max(1e-9)
-    }
 }
 
 /// One distributed frame: who did what, and what assembling it cost rank 0.
@@ -103,15 +97,6 @@ impl Cluster {
 
     pub fn size(&self) -> usize {
         self.link.size()
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// How long the workers may take to open the input (default ten times `timeout`).
-    pub fn set_open_timeout(&mut self, t: Duration) {
-        self.open_timeout = t;
     }
 
     /// Out-of-core: how long a worker waits to reach rank 0's loaded levels (the CLI's
@@ -275,7 +260,6 @@ impl Cluster {
             ranks: vec![RankReport::default(); ranks],
             ..FrameReport::default()
         };
-        let mut counts = TraversalCounts::default();
         let mut rays = [0u64; 3];
         let stop = AtomicBool::new(false);
         let timeout = self.timeout;
@@ -301,43 +285,39 @@ impl Cluster {
             });
             let mut local_done = false;
             loop {
-                // Wait a little for rank 0's own chunks (this is also the poll interval of
-                // the other ranks' messages: no busy loop beside the rendering threads).
-                let mut first = if local_done {
+                // Wait a little for rank 0's own chunks, then take all that are ready.
+                let mut next = if local_done {
                     std::thread::sleep(POLL);
-                    Err(mpsc::RecvTimeoutError::Timeout)
+                    None
                 } else {
-                    local.recv_timeout(POLL)
-                };
-                loop {
-                    let next =
-                        match std::mem::replace(&mut first, Err(mpsc::RecvTimeoutError::Timeout)) {
-                            Ok(x) => Ok(x),
-                            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                                Err(mpsc::TryRecvError::Disconnected)
-                            }
-                            Err(mpsc::RecvTimeoutError::Timeout) => local.try_recv(),
-                        };
-                    match next {
-                        Ok((parts, secs)) => {
-                            let rr = &mut report.ranks[0];
-                            rr.chunks += parts.len();
-                            rr.render_seconds += secs;
-                            for (id, f) in &parts {
-                                wire::paste_chunk(grid, *id, &f.rgba8, &f.depth, &mut frame);
-                                rr.primary_rays += f.rays.primary;
-                                rays[0] += f.rays.primary;
-                                rays[1] += f.rays.transparency;
-                                rays[2] += f.rays.shadow;
-                                counts.add(&f.counts);
-                            }
-                        }
-                        Err(mpsc::TryRecvError::Empty) => break,
-                        Err(mpsc::TryRecvError::Disconnected) => {
+                    match local.recv_timeout(POLL) {
+                        Ok(x) => Some(x),
+                        Err(mpsc::RecvTimeoutError::Timeout) => None,
+                        Err(mpsc::RecvTimeoutError::Disconnected) => {
                             local_done = true;
-                            break;
+                            None
                         }
                     }
+                };
+                while let Some((parts, secs)) = next {
+                    let rr = &mut report.ranks[0];
+                    rr.chunks += parts.len();
+                    rr.render_seconds += secs;
+                    for (id, f) in &parts {
+                        wire::paste_chunk(grid, *id, &f.rgba8, &f.depth, &mut frame);
+                        rr.primary_rays += f.rays.primary;
+                        rays[0] += f.rays.primary;
+                        rays[1] += f.rays.transparency;
+                        rays[2] += f.rays.shadow;
+                    }
+                    next = match local.try_recv() {
+                        Ok(x) => Some(x),
+                        Err(mpsc::TryRecvError::Empty) => None,
+                        Err(mpsc::TryRecvError::Disconnected) => {
+                            local_done = true;
+                            None
+                        }
+                    };
                 }
                 // Answer every message that has arrived.
                 while let Some(env) = link.try_recv() {
@@ -425,7 +405,6 @@ impl Cluster {
         frame.rays.primary = rays[0];
         frame.rays.transparency = rays[1];
         frame.rays.shadow = rays[2];
-        frame.counts = counts;
         frame.elapsed = start.elapsed();
         report.seconds = frame.elapsed.as_secs_f64();
         self.history = Some((grid, lock(&schedule).owners().to_vec()));

@@ -21,6 +21,10 @@ struct Plan {
 
 fn plan(cli: &Cli) -> anyhow::Result<Plan> {
     Ok(match &cli.command {
+        Some(Command::Render(a)) if a.stats => {
+            // Traversal statistics are counted per process; a job would report a part.
+            bail!("--stats counts the traversal of one process: run it without --mpi")
+        }
         Some(Command::Render(a)) => Plan {
             input: a.scene.file.clone(),
             level_wait: a.scene.ooc.level_timeout()?,
@@ -92,11 +96,9 @@ pub fn run(
     }
     let link = MpiLink::world();
     if link.rank() != 0 {
-        let opened = open_for(&cli, &plan.input);
-        let why = opened.as_ref().err().map(crate::cli::error_text);
-        match worker::report_opened(&link, opened) {
+        match worker::report_opened(&link, open_for(&cli, &plan.input)) {
             Some(mut scene) => worker::serve(&link, &mut scene),
-            None => worker::serve_none(&link, why.as_deref().unwrap_or("cannot open")),
+            None => worker::serve_none(&link),
         }
         drop(universe);
         return Ok(());

@@ -56,7 +56,7 @@ fn with_job<R>(
                 let opened = open_scene(path, &SceneOptions::default());
                 match worker::report_opened(&link, opened) {
                     Some(mut scene) => worker::serve(&link, &mut scene),
-                    None => worker::serve_none(&link, "could not open"),
+                    None => worker::serve_none(&link),
                 }
             });
         }
@@ -218,7 +218,7 @@ fn a_rank_that_cannot_open_the_input_fails_the_job_naming_it() {
                 let opened = open_scene(&mine, &SceneOptions::default());
                 match worker::report_opened(&link, opened) {
                     Some(mut scene) => worker::serve(&link, &mut scene),
-                    None => worker::serve_none(&link, "could not open"),
+                    None => worker::serve_none(&link),
                 }
             });
         }

@@ -32,26 +32,12 @@ pub fn report_opened(link: &dyn Link, opened: anyhow::Result<AnyScene>) -> Optio
     }
 }
 
-/// After a failed open: answers every job with the error until rank 0 says quit.
-pub fn serve_none(link: &dyn Link, why: &str) {
+/// After a failed open: waits for rank 0's `Quit` (a job whose open failed is sent no
+/// frames: rank 0 reports the error and ends it).
+pub fn serve_none(link: &dyn Link) {
     while let Some(env) = link.recv() {
-        match env.tag {
-            Tag::Quit => return,
-            Tag::Job => link.send(0, Tag::Error, why.as_bytes()),
-            Tag::Batch => {
-                if let Ok((frame, _)) = wire::decode_batch(&env.bytes) {
-                    let empty = BatchResult {
-                        frame,
-                        render_ns: 0,
-                        rays: [0; 3],
-                        chunks: Vec::new(),
-                        rgba8: Vec::new(),
-                        depth: Vec::new(),
-                    };
-                    link.send(0, Tag::Result, &empty.encode());
-                }
-            }
-            _ => {}
+        if env.tag == Tag::Quit {
+            return;
         }
     }
 }
