@@ -1,12 +1,14 @@
 //! From a traversal's cell hit to a world-space [`Hit`]: [`first_hit_with`], the one
 //! first-hit loop of the kd-tree scene ([`super::GridScene`]), its DDA twin
-//! ([`super::DdaScene`]) and the out-of-core scene ([`crate::ooc::OocScene`]), and
+//! ([`super::DdaScene`]) and the out-of-core scene ([`crate::ooc::OocScene`]);
+//! [`first_hits_packet_with`], the one packet loop of the kd-tree and out-of-core scenes; and
 //! [`make_hit`], the hit with its shading normal ([`super::normals`]).
 
 use glam::Vec3;
 
 use super::normals::normal_at;
 use crate::intersect::{CellHit, CellIntersector, LocalRay, TraversalFrame};
+use crate::kdtree::{PACKET_WIDTH, packet_compatible};
 use crate::math::Ray;
 use crate::render::{Hit, Stats};
 use crate::voxel::Voxel;
@@ -39,6 +41,29 @@ pub trait CellTrace<T: Voxel> {
         intersector: C,
         stats: &mut S,
     ) -> Option<(CellHit, CellBlock<'_, T>)>;
+
+    /// First cell hits of up to [`PACKET_WIDTH`] [`packet_compatible`] rays over their
+    /// clipped intervals `[t0[i], t1[i]]` (empty when `t0[i] > t1[i]`), equal to
+    /// [`CellTrace::cell_hit`] ray by ray. The default traces them one by one.
+    #[allow(clippy::too_many_arguments)]
+    fn cell_hits_packet<'s, C: CellIntersector, S: Stats>(
+        &'s self,
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &Self::Isovalues,
+        intersector: C,
+        stats: &mut S,
+        out: &mut [Option<(CellHit, CellBlock<'s, T>)>],
+    ) {
+        for (i, ray) in rays.iter().enumerate() {
+            out[i] = if t0[i] <= t1[i] {
+                self.cell_hit(ray, t0[i], t1[i], isos, intersector, stats)
+            } else {
+                None
+            };
+        }
+    }
 }
 
 /// [`crate::render::IsoScene::first_hit_prepared`] of `scene` with a static intersector `C`
@@ -64,6 +89,86 @@ pub fn first_hit_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: Stats>(
         ray,
         h,
     ))
+}
+
+/// [`crate::render::IsoScene::first_hit_packet_prepared`] of `scene` for up to
+/// [`PACKET_WIDTH`] rays with a static intersector: the rays in traversal units and clipped,
+/// then one packet ([`CellTrace::cell_hits_packet`]) when their directions allow it, else
+/// groups of 8 as packets or one by one; same hits as [`first_hit_with`] either way.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: Stats>(
+    scene: &G,
+    rays: &[Ray],
+    t_min: &[f32],
+    t_max: &[f32],
+    isos: &G::Isovalues,
+    intersector: C,
+    out: &mut [Option<Hit>],
+    stats: &mut S,
+) {
+    let n = rays.len().min(PACKET_WIDTH);
+    let frame = scene.frame();
+    let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
+    let mut t0 = [f32::INFINITY; PACKET_WIDTH];
+    let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
+    // Rays from one eye (a pinhole camera) share the origin's f64 transform.
+    let mut last_origin: Option<([u32; 3], Vec3)> = None;
+    for i in 0..n {
+        stats.ray();
+        let bits = rays[i].origin.to_array().map(f32::to_bits);
+        let origin = match last_origin {
+            Some((b, o)) if b == bits => o,
+            _ => {
+                let o = frame.local_origin(rays[i].origin);
+                last_origin = Some((bits, o));
+                o
+            }
+        };
+        local[i] = LocalRay::new(origin, frame.local_dir(rays[i].dir));
+        if let Some((a, b)) = frame.clip(&local[i], t_min[i], t_max[i]) {
+            t0[i] = a;
+            t1[i] = b;
+        }
+    }
+    let mut cell_hits = [None; PACKET_WIDTH];
+    // The whole group as one packet if it can be; else groups of 8 (a packet, or one by
+    // one: rays on both sides of an axis-parallel direction).
+    let groups = if packet_compatible(&local[..n]) { n } else { 8 };
+    for start in (0..n).step_by(groups.max(1)) {
+        let end = (start + groups).min(n);
+        let (l, a, b) = (&local[start..end], &t0[start..end], &t1[start..end]);
+        if packet_compatible(l) {
+            scene.cell_hits_packet(
+                l,
+                a,
+                b,
+                isos,
+                intersector,
+                stats,
+                &mut cell_hits[start..end],
+            );
+            continue;
+        }
+        for i in start..end {
+            if t0[i] <= t1[i] {
+                // Clipping again inside `cell_hit` changes nothing (a slab test of the same box).
+                cell_hits[i] = scene.cell_hit(&local[i], t0[i], t1[i], isos, intersector, stats);
+            }
+        }
+    }
+    for i in 0..n {
+        out[i] = cell_hits[i].map(|(h, block)| {
+            make_hit(
+                block.frame,
+                block.voxels,
+                block.dims,
+                &local[i],
+                &rays[i],
+                h,
+            )
+        });
+    }
 }
 
 /// Turns a cell hit into a [`Hit`] with a world-space normal.

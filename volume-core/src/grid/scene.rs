@@ -16,13 +16,11 @@ use std::time::Duration;
 use glam::Vec3;
 
 use super::dda::DdaScene;
-use super::hit::{CellBlock, CellTrace, first_hit_with, make_hit};
+use super::hit::{CellBlock, CellTrace, first_hit_with, first_hits_packet_with};
 use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::{
-    KdTree, KdTreeConfig, PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack,
-};
+use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, with_packet_stack};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, HitField, IsoScene, SceneVisitor, Stats};
 use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
@@ -202,93 +200,6 @@ impl<T: Voxel> GridScene<T> {
         )
     }
 
-    /// Up to [`PACKET_WIDTH`] rays as one SIMD packet when their directions allow it
-    /// ([`crate::kdtree::packet_compatible`]), else one by one; same results either way.
-    /// `stack` is scratch, reused across calls.
-    pub fn packet_with<C: CellIntersector, S: Stats>(
-        &self,
-        stack: &mut PacketStack,
-        rays: &[Ray],
-        t_min: &[f32],
-        t_max: &[f32],
-        isos: &IsoSet<T>,
-        intersector: C,
-        out: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
-        let n = rays.len().min(PACKET_WIDTH);
-        let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
-        let mut t0 = [f32::INFINITY; PACKET_WIDTH];
-        let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
-        // Rays from one eye (a pinhole camera) share the origin's f64 transform.
-        let mut last_origin: Option<([u32; 3], Vec3)> = None;
-        for i in 0..n {
-            stats.ray();
-            let bits = rays[i].origin.to_array().map(f32::to_bits);
-            let origin = match last_origin {
-                Some((b, o)) if b == bits => o,
-                _ => {
-                    let o = self.frame.local_origin(rays[i].origin);
-                    last_origin = Some((bits, o));
-                    o
-                }
-            };
-            local[i] = LocalRay::new(origin, self.frame.local_dir(rays[i].dir));
-            if let Some((a, b)) = self.frame.clip(&local[i], t_min[i], t_max[i]) {
-                t0[i] = a;
-                t1[i] = b;
-            }
-        }
-        let mut cell_hits = [None; PACKET_WIDTH];
-        // The whole group as one packet if it can be; else groups of 8 (a packet, or one
-        // by one: rays on both sides of an axis-parallel direction).
-        let groups = if packet_compatible(&local[..n]) { n } else { 8 };
-        for start in (0..n).step_by(groups) {
-            let end = (start + groups).min(n);
-            if packet_compatible(&local[start..end]) {
-                self.tree.first_hit_packet_in(
-                    stack,
-                    &self.frame,
-                    self.voxels.as_slice(),
-                    &local[start..end],
-                    &t0[start..end],
-                    &t1[start..end],
-                    isos,
-                    intersector,
-                    stats,
-                    &mut cell_hits[start..end],
-                );
-                continue;
-            }
-            for i in start..end {
-                if t0[i] <= t1[i] && local[i].dir != Vec3::ZERO {
-                    cell_hits[i] = self.tree.first_hit(
-                        &self.frame,
-                        self.voxels.as_slice(),
-                        &local[i],
-                        t0[i],
-                        t1[i],
-                        isos,
-                        intersector,
-                        stats,
-                    );
-                }
-            }
-        }
-        for i in 0..n {
-            out[i] = cell_hits[i].map(|h| {
-                make_hit(
-                    &self.frame,
-                    self.voxels.as_slice(),
-                    self.dims,
-                    &local[i],
-                    &rays[i],
-                    h,
-                )
-            });
-        }
-    }
-
     /// The gradient magnitude of this scene's field at hit positions (colouring).
     pub fn gradient_field(&self) -> GridField<'_, T> {
         GridField::new(
@@ -331,6 +242,39 @@ impl<T: Voxel> CellTrace<T> for GridScene<T> {
         let h = self.cell_hit_with(ray, t_min, t_max, isos, intersector, stats)?;
         Some((h, self.block()))
     }
+
+    #[inline]
+    fn cell_hits_packet<'s, C: CellIntersector, S: Stats>(
+        &'s self,
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+        out: &mut [Option<(CellHit, CellBlock<'s, T>)>],
+    ) {
+        let mut hits = [None; PACKET_WIDTH];
+        let n = rays.len().min(PACKET_WIDTH);
+        with_packet_stack(|stack| {
+            self.tree.first_hit_packet_in(
+                stack,
+                &self.frame,
+                self.voxels.as_slice(),
+                rays,
+                t0,
+                t1,
+                isos,
+                intersector,
+                stats,
+                &mut hits[..n],
+            );
+        });
+        let block = self.block();
+        for (o, h) in out.iter_mut().zip(&hits[..n]) {
+            *o = h.map(|h| (h, block));
+        }
+    }
 }
 
 impl<T: Voxel> IsoScene for GridScene<T> {
@@ -366,15 +310,10 @@ impl<T: Voxel> IsoScene for GridScene<T> {
         stats: &mut S,
     ) {
         crate::dispatch_intersector!(self.intersector, c => {
-            if rays.is_empty() {
-                return;
+            for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                let base = start * PACKET_WIDTH;
+                first_hits_packet_with(self, chunk, &t_min[base..], &t_max[base..], isos, c, &mut out[base..], stats);
             }
-            with_packet_stack(|stack| {
-                for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
-                    let base = start * PACKET_WIDTH;
-                    self.packet_with(stack, chunk, &t_min[base..], &t_max[base..], isos, c, &mut out[base..], stats);
-                }
-            });
         });
     }
 }

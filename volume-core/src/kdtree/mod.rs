@@ -33,7 +33,7 @@
 //! of isovalues in one pass. That child-ordering step is written once (`step.rs`) and shared
 //! with the packet traversal and the out-of-core one ([`crate::ooc`]).
 
-mod packet;
+pub(crate) mod packet;
 pub(crate) mod step;
 
 pub use packet::{PACKET_WIDTH, PacketStack, packet_compatible, with_packet_stack};

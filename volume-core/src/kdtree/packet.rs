@@ -26,7 +26,7 @@ use crate::voxel::Voxel;
 
 /// `f32x8` halves per packet: 2 gives 16-ray packets (4×4 pixels), which halve the scalar
 /// per-node work (addresses, min/max loads and culling, branches) per ray.
-const HALVES: usize = 2;
+pub(crate) const HALVES: usize = 2;
 
 /// Rays per packet.
 pub const PACKET_WIDTH: usize = 8 * HALVES;
@@ -36,10 +36,10 @@ pub const PACKET_WIDTH: usize = 8 * HALVES;
 const LEAF_LANES_MIN: u32 = 3;
 
 /// Lanes of a packet: `HALVES` vectors of 8.
-type Lanes = [f32x8; HALVES];
+pub(crate) type Lanes = [f32x8; HALVES];
 
 #[inline(always)]
-fn lanes(x: &[f32; PACKET_WIDTH]) -> Lanes {
+pub(crate) fn lanes(x: &[f32; PACKET_WIDTH]) -> Lanes {
     let mut v = [f32x8::ZERO; HALVES];
     for (h, c) in x.chunks_exact(8).enumerate() {
         v[h] = f32x8::new(c.try_into().expect("8 lanes"));
@@ -48,13 +48,13 @@ fn lanes(x: &[f32; PACKET_WIDTH]) -> Lanes {
 }
 
 #[inline(always)]
-fn splat(x: f32) -> Lanes {
+pub(crate) fn splat(x: f32) -> Lanes {
     [f32x8::splat(x); HALVES]
 }
 
 /// Bit `8h + i` set where lane `i` of half `h` satisfies `f`.
 #[inline(always)]
-fn bits(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> u32 {
+pub(crate) fn bits(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> u32 {
     let mut m = 0;
     for (h, (&x, &y)) in a.iter().zip(b).enumerate() {
         m |= f(x, y).to_bitmask() << (8 * h);
@@ -63,7 +63,7 @@ fn bits(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> u32 {
 }
 
 #[inline(always)]
-fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
+pub(crate) fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
     std::array::from_fn(|h| f(a[h], b[h]))
 }
 
@@ -102,6 +102,133 @@ pub fn packet_compatible(rays: &[LocalRay]) -> bool {
     let pos = first.dir.cmpgt(glam::Vec3::ZERO);
     rays.iter()
         .all(|r| r.dir.cmpne(glam::Vec3::ZERO).all() && r.dir.cmpgt(glam::Vec3::ZERO) == pos)
+}
+
+/// A packet's rays as lanes (structure of arrays), with padding lanes (origin 0, direction
+/// 1, empty interval: `t_near = +inf > t_far = -inf`), as the in-core and the out-of-core
+/// ([`crate::ooc`]) packet traversals read them.
+pub(crate) struct PacketRays {
+    pub org: [Lanes; 3],
+    pub inv: [Lanes; 3],
+    /// Direction signs, shared by the packet ([`packet_compatible`]).
+    pub dir_pos: [bool; 3],
+    /// The halves for the leaves (SIMD cell tests, [`crate::intersect::packet`]).
+    pub leaf: [RaysX8; HALVES],
+    pub t_near: Lanes,
+    pub t_far: Lanes,
+}
+
+impl PacketRays {
+    /// Up to [`PACKET_WIDTH`] compatible rays with clipped intervals `[t0[i], t1[i]]`.
+    #[inline(always)]
+    pub(crate) fn new(rays: &[LocalRay], t0: &[f32], t1: &[f32]) -> Self {
+        let n = rays.len().min(PACKET_WIDTH);
+        // Filled by plain loops (no closure call per lane).
+        let mut soa = [[0.0f32; PACKET_WIDTH]; 9];
+        for lane_values in &mut soa[3..] {
+            *lane_values = [1.0; PACKET_WIDTH];
+        }
+        for (i, r) in rays[..n].iter().enumerate() {
+            for a in 0..3 {
+                soa[a][i] = r.origin[a];
+                soa[3 + a][i] = r.inv_dir[a];
+                soa[6 + a][i] = r.dir[a];
+            }
+        }
+        let org = [0, 1, 2].map(|a| lanes(&soa[a]));
+        let inv = [0, 1, 2].map(|a| lanes(&soa[3 + a]));
+        let dir = [0, 1, 2].map(|a| lanes(&soa[6 + a]));
+        let dir_pos = [0, 1, 2].map(|a| rays[0].dir[a] > 0.0);
+        let mut t_near = [f32::INFINITY; PACKET_WIDTH];
+        let mut t_far = [f32::NEG_INFINITY; PACKET_WIDTH];
+        t_near[..n].copy_from_slice(&t0[..n]);
+        t_far[..n].copy_from_slice(&t1[..n]);
+        let (t_near, t_far) = (lanes(&t_near), lanes(&t_far));
+        let leaf = std::array::from_fn(|h| RaysX8 {
+            origin: org.map(|v| v[h]),
+            dir: dir.map(|v| v[h]),
+            inv_dir: inv.map(|v| v[h]),
+            dir_pos,
+            t_lo: t_near[h],
+            t_hi: t_far[h],
+        });
+        Self {
+            org,
+            inv,
+            dir_pos,
+            leaf,
+            t_near,
+            t_far,
+        }
+    }
+}
+
+/// The leaf step of a packet traversal, written once for the in-core and out-of-core trees:
+/// tests cell `cell` of the block (`frame`, `voxels`, `dims`) against the `active` rays (bit
+/// `k` = ray `k`), all at once in `f32x8` lanes or, for few rays, one by one, each over its
+/// whole clipped interval `[t0[k], t1[k]]` as the single-ray traversal does; calls
+/// `on_hit(k, hit)` for a hit nearer than `best[k]` and returns the updated `best` as lanes.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cell: [usize; 3],
+    p: &PacketRays,
+    rays: &[LocalRay],
+    t0: &[f32],
+    t1: &[f32],
+    active: u32,
+    isos: &IsoSet<T>,
+    intersector: C,
+    stats: &mut S,
+    best: &mut [f32; PACKET_WIDTH],
+    mut on_hit: impl FnMut(usize, CellHit),
+) -> Lanes {
+    for _ in 0..active.count_ones() {
+        stats.leaf();
+    }
+    let Some(pc) = PreparedCell::load(frame, voxels, dims, cell, isos) else {
+        return lanes(best);
+    };
+    for (h, half_rays) in p.leaf.iter().enumerate() {
+        let half = (active >> (8 * h)) & 0xff;
+        if half.count_ones() >= LEAF_LANES_MIN {
+            let hits = intersect_prepared_cell_x8(&pc, half_rays, half, isos, intersector, stats);
+            let mut b = hits.mask;
+            while b != 0 {
+                let i = b.trailing_zeros() as usize;
+                b &= b - 1;
+                let k = 8 * h + i;
+                if hits.t[i] < best[k] {
+                    best[k] = hits.t[i];
+                    on_hit(
+                        k,
+                        CellHit {
+                            t: hits.t[i],
+                            surface: hits.surface[i],
+                            cell,
+                        },
+                    );
+                }
+            }
+        } else {
+            let mut b = half;
+            while b != 0 {
+                let k = 8 * h + b.trailing_zeros() as usize;
+                b &= b - 1;
+                if let Some(hit) =
+                    intersect_prepared_cell(&pc, &rays[k], t0[k], t1[k], isos, intersector, stats)
+                    && hit.t < best[k]
+                {
+                    best[k] = hit.t;
+                    on_hit(k, hit);
+                }
+            }
+        }
+    }
+    lanes(best)
 }
 
 impl<T: Voxel> KdTree<T> {
@@ -178,39 +305,9 @@ impl<T: Voxel> KdTree<T> {
         if self.stored > 0 && !isos.any_in(self.ranges[0][0], self.ranges[0][1]) {
             return;
         }
-        // Structure of arrays with padding lanes (origin 0, direction 1), filled by plain
-        // loops (no closure call per lane).
-        let mut soa = [[0.0f32; PACKET_WIDTH]; 9];
-        for lane_values in &mut soa[3..] {
-            *lane_values = [1.0; PACKET_WIDTH];
-        }
-        for (i, r) in rays[..n].iter().enumerate() {
-            for a in 0..3 {
-                soa[a][i] = r.origin[a];
-                soa[3 + a][i] = r.inv_dir[a];
-                soa[6 + a][i] = r.dir[a];
-            }
-        }
-        let org = [0, 1, 2].map(|a| lanes(&soa[a]));
-        let inv = [0, 1, 2].map(|a| lanes(&soa[3 + a]));
-        let dir = [0, 1, 2].map(|a| lanes(&soa[6 + a]));
-        let dir_pos = [0, 1, 2].map(|a| rays[0].dir[a] > 0.0);
-        // Padding lanes are empty: t_near = +inf > t_far = −inf.
-        let mut t_near = [f32::INFINITY; PACKET_WIDTH];
-        let mut t_far = [f32::NEG_INFINITY; PACKET_WIDTH];
-        t_near[..n].copy_from_slice(&t0[..n]);
-        t_far[..n].copy_from_slice(&t1[..n]);
-        let mut tn = lanes(&t_near);
-        let mut tf = lanes(&t_far);
-        // The halves for the leaves (SIMD cell tests, `intersect::packet`).
-        let leaf_rays: [RaysX8; HALVES] = std::array::from_fn(|h| RaysX8 {
-            origin: org.map(|v| v[h]),
-            dir: dir.map(|v| v[h]),
-            inv_dir: inv.map(|v| v[h]),
-            dir_pos,
-            t_lo: tn[h],
-            t_hi: tf[h],
-        });
+        let p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
+        let (org, inv, dir_pos) = (&p.org, &p.inv, p.dir_pos);
+        let (mut tn, mut tf) = (p.t_near, p.t_far);
         let mut best = [f32::INFINITY; PACKET_WIDTH];
         let mut best_v = splat(f32::INFINITY);
         let mut sp = 0usize;
@@ -224,61 +321,22 @@ impl<T: Voxel> KdTree<T> {
                 }
                 if level == self.depth {
                     let cell = node.map(|x| x as usize);
-                    for _ in 0..active.count_ones() {
-                        stats.leaf();
-                    }
-                    let Some(pc) = PreparedCell::load(frame, voxels, self.dims, cell, isos) else {
-                        break;
-                    };
-                    for (h, half_rays) in leaf_rays.iter().enumerate() {
-                        let half = (active >> (8 * h)) & 0xff;
-                        if half.count_ones() >= LEAF_LANES_MIN {
-                            let hits = intersect_prepared_cell_x8(
-                                &pc,
-                                half_rays,
-                                half,
-                                isos,
-                                intersector,
-                                stats,
-                            );
-                            let mut b = hits.mask;
-                            while b != 0 {
-                                let i = b.trailing_zeros() as usize;
-                                b &= b - 1;
-                                let k = 8 * h + i;
-                                if hits.t[i] < best[k] {
-                                    best[k] = hits.t[i];
-                                    out[k] = Some(CellHit {
-                                        t: hits.t[i],
-                                        surface: hits.surface[i],
-                                        cell,
-                                    });
-                                }
-                            }
-                        } else {
-                            let mut b = half;
-                            while b != 0 {
-                                let k = 8 * h + b.trailing_zeros() as usize;
-                                b &= b - 1;
-                                if let Some(hit) = intersect_prepared_cell(
-                                    &pc,
-                                    &rays[k],
-                                    t0[k],
-                                    t1[k],
-                                    isos,
-                                    intersector,
-                                    stats,
-                                ) && hit.t < best[k]
-                                {
-                                    best[k] = hit.t;
-                                    out[k] = Some(hit);
-                                }
-                            }
-                        }
-                    }
-                    best_v = std::array::from_fn(|h| {
-                        f32x8::new(std::array::from_fn(|i| best[8 * h + i]))
-                    });
+                    best_v = packet_leaf(
+                        frame,
+                        voxels,
+                        self.dims,
+                        cell,
+                        &p,
+                        rays,
+                        t0,
+                        t1,
+                        active,
+                        isos,
+                        intersector,
+                        stats,
+                        &mut best,
+                        |k, hit| out[k] = Some(hit),
+                    );
                     break;
                 }
                 stats.node();
