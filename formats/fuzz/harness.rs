@@ -432,9 +432,10 @@ pub fn metaimage(data: &[u8]) -> Outcome {
         .filter(|h| h.data_file != formats::metaimage::DataFile::Local);
     let path = if let Some(header) = detached {
         let path = dir.join("h.mhd");
-        let files = formats::metaimage::data_file_paths(header, &path);
-        let ours: Vec<_> = files
-            .iter()
+        // Names are made one at a time: a pattern can name 2^20 files, and listing them all
+        // for every input made such headers time out here, not in the reader.
+        let ours: Vec<_> = (0..formats::metaimage::data_file_count(header))
+            .map(|i| formats::metaimage::data_file_path(header, &path, i))
             .filter(|f| f.parent() == Some(dir.as_path()))
             .take(MAX_DATA_FILES)
             .collect();
@@ -447,7 +448,7 @@ pub fn metaimage(data: &[u8]) -> Outcome {
                 &rest[i * per..(i + 1) * per]
             };
             if std::fs::write(f, chunk).is_ok() {
-                written.push((*f).clone());
+                written.push(f.clone());
             }
         }
         std::fs::write(&path, &data[..header.header_len.min(data.len())]).expect("write h.mhd");

@@ -556,23 +556,36 @@ pub fn read_header(path: &Path) -> Result<MetaHeader, FormatError> {
     parse_header(path, &read_header_bytes(path)?)
 }
 
-/// The data files of a header at `path`, in order.
-pub fn data_file_paths(header: &MetaHeader, path: &Path) -> Vec<PathBuf> {
+/// How many data files a header names: one per slice for a pattern, one per name for a
+/// `LIST`, else one.
+pub fn data_file_count(header: &MetaHeader) -> usize {
+    match &header.data_file {
+        DataFile::Local | DataFile::File(_) => 1,
+        DataFile::Pattern { .. } => header.dim_size[header.ndims - 1],
+        DataFile::List { files, .. } => files.len(),
+    }
+}
+
+/// The data file number `i` (`i < data_file_count`) of a header at `path`. A pattern's names
+/// are made one at a time: a 100-byte header can name 2^20 files.
+pub fn data_file_path(header: &MetaHeader, path: &Path, i: usize) -> PathBuf {
     let resolve = |name: &str| crate::input::beside(path, name);
     match &header.data_file {
-        DataFile::Local => vec![path.to_path_buf()],
-        DataFile::File(name) => vec![resolve(name)],
+        DataFile::Local => path.to_path_buf(),
+        DataFile::File(name) => resolve(name),
         DataFile::Pattern { format, min, step } => {
-            let slices = header.dim_size[header.ndims - 1];
-            (0..slices as i64)
-                .map(|i| {
-                    let n = min.saturating_add(i.saturating_mul(*step));
-                    resolve(&crate::nrrd::header::format_printf(format, n))
-                })
-                .collect()
+            let n = min.saturating_add((i as i64).saturating_mul(*step));
+            resolve(&crate::nrrd::header::format_printf(format, n))
         }
-        DataFile::List { files, .. } => files.iter().map(|f| resolve(f)).collect(),
+        DataFile::List { files, .. } => resolve(&files[i]),
     }
+}
+
+/// The data files of a header at `path`, in order.
+pub fn data_file_paths(header: &MetaHeader, path: &Path) -> Vec<PathBuf> {
+    (0..data_file_count(header))
+        .map(|i| data_file_path(header, path, i))
+        .collect()
 }
 
 /// The world frame the header's `AnatomicalOrientation` and direction matrix give (module
@@ -660,11 +673,8 @@ fn plan(path: &Path, h: &MetaHeader) -> Result<(DataPlan, VolumeLayout, u64), Fo
 
     // A pattern names one file per slice: its last file must exist before the list of them
     // all is made (a 100-byte header can name 2^20 files, a few hundred MB of names).
-    if let DataFile::Pattern { format, min, step } = &h.data_file {
-        let slices = h.dim_size[h.ndims - 1] as i64;
-        let last = min.saturating_add((slices - 1).saturating_mul(*step));
-        let last_file =
-            crate::input::beside(path, &crate::nrrd::header::format_printf(format, last));
+    if let DataFile::Pattern { .. } = &h.data_file {
+        let last_file = data_file_path(h, path, data_file_count(h) - 1);
         crate::input::check_regular(&last_file).map_err(|e| FormatError::io(&last_file, e))?;
     }
     let files = data_file_paths(h, path);

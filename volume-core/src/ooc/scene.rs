@@ -26,22 +26,28 @@
 //! the in-core ones, so hits equal [`crate::grid::GridScene`]'s; quantized ranges only
 //! add visited nodes.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::OocError;
+use wide::f32x8;
+
 use super::layout::linear_index;
 use super::quantize::CodeQuery;
 use super::treelet::{OocMeta, TreeletRecord, TreeletStorage};
-use crate::grid::hit::{CellBlock, CellTrace, first_hit_with};
+use crate::grid::hit::{CellBlock, CellTrace, first_hit_with, first_hits_packet_with};
 use crate::intersect::{
     CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
     intersect_cell,
 };
-use crate::kdtree::step::{ray_step, take_step};
+use crate::kdtree::packet::{Lanes, PacketRays, bits, map2, packet_leaf, splat};
+use crate::kdtree::step::{Step, Visit, ray_step, take_step};
+use crate::kdtree::{PACKET_WIDTH, packet_compatible};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::voxel::Voxel;
@@ -65,7 +71,30 @@ impl<T: Voxel> ResidentTreelet<T> {
     }
 }
 
-type LevelMap<T> = HashMap<u64, Arc<ResidentTreelet<T>>>;
+/// Resident treelets of one level by index. Looked up at every treelet boundary a ray
+/// crosses: the default SipHash took a tenth of the traversal's time.
+type LevelMap<T> = HashMap<u64, Arc<ResidentTreelet<T>>, BuildHasherDefault<TreeletIdHasher>>;
+
+/// A multiplicative hash of a treelet index (Fibonacci hashing, as FxHash): indices are
+/// dense small integers, not attacker-chosen keys.
+#[derive(Debug, Default, Clone, Copy)]
+struct TreeletIdHasher(u64);
+
+impl Hasher for TreeletIdHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+
+    fn write_u64(&mut self, i: u64) {
+        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+}
 
 /// What one frame renders with: the published levels (the bit table).
 #[derive(Debug)]
@@ -358,7 +387,8 @@ impl<T: Voxel> Shared<T> {
             } else {
                 self.needed_children(&levels[l - 1], l - 1, queries, all)
             };
-            let mut map = LevelMap::with_capacity(needed.len());
+            let mut map =
+                LevelMap::with_capacity_and_hasher(needed.len(), BuildHasherDefault::default());
             self.level_fetched.store(0, Ordering::Release);
             self.level_needed
                 .store(needed.len() as u64, Ordering::Release);
@@ -377,7 +407,7 @@ impl<T: Voxel> Shared<T> {
                     // level and the finer ones in as frames ask for them.
                     let complete = levels.len();
                     levels.push(Arc::new(map));
-                    levels.extend((l + 1..n).map(|_| Arc::new(LevelMap::new())));
+                    levels.extend((l + 1..n).map(|_| Arc::new(LevelMap::default())));
                     self.publish(request, &levels, complete, bytes);
                     return Ok(true);
                 }
@@ -575,7 +605,7 @@ impl<T: Voxel> OocVolume<T> {
         };
         let first = Arc::new(shared.load(0, 0)?);
         let bytes = first.bytes();
-        let mut level0 = LevelMap::new();
+        let mut level0 = LevelMap::default();
         level0.insert(0, first);
         shared.state.lock().expect("loader state").snapshot = Arc::new(Snapshot {
             levels: vec![Arc::new(level0)],
@@ -807,18 +837,48 @@ impl<T: Voxel> std::fmt::Debug for OocScene<T> {
     }
 }
 
+/// A far child to visit later: its node, tree level, slot in its treelet, the treelet
+/// (level `tl`, index `ti`), and the interval (`f32` for a ray, lanes for a packet).
 #[derive(Debug, Clone, Copy, Default)]
-struct Entry {
+struct Entry<L> {
     node: [u32; 3],
     level: u32,
     h: u32,
     tl: u32,
     ti: u64,
-    t_near: f32,
-    t_far: f32,
+    t_near: L,
+    t_far: L,
 }
 
-const INLINE_STACK: usize = 64;
+thread_local! {
+    /// The traversal stacks of this thread's rays and packets (one entry per level at most),
+    /// made once per thread: zeroing 64 entries per ray showed in profiles.
+    static STACK: RefCell<Vec<Entry<f32>>> = const { RefCell::new(Vec::new()) };
+    static PACKET_STACK: RefCell<Vec<Entry<Lanes>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// The children of an inner node as both traversals read them.
+#[derive(Debug, Clone, Copy)]
+struct NodeSplit {
+    axis: usize,
+    /// One-hot `axis`.
+    unit: [u32; 3],
+    /// Split position (traversal units); `+inf` when the left child covers every real cell.
+    split: f32,
+    left: [u32; 3],
+    right_real: bool,
+}
+
+/// The left (`right == false`) or right child of a node whose left child is `left` along the
+/// one-hot axis `u`, with its heap slot in the treelet (parent slot `h`).
+#[inline(always)]
+fn child_of(left: [u32; 3], u: [u32; 3], h: usize, right: bool) -> ([u32; 3], usize) {
+    let r = u32::from(right);
+    (
+        [left[0] + r * u[0], left[1] + r * u[1], left[2] + r * u[2]],
+        2 * h + 1 + r as usize,
+    )
+}
 
 impl<T: Voxel> OocScene<T> {
     /// The finest complete level of this frame (0 = coarsest); demand-paged treelets of
@@ -849,8 +909,11 @@ impl<T: Voxel> OocScene<T> {
         let (t0, t1) = self.shared.frame.clip(ray, t_min, t_max)?;
         let queries = &isos.queries[..isos.count];
         let depth = self.shared.meta.layout.depth();
-        if depth < INLINE_STACK {
-            let mut stack = [Entry::default(); INLINE_STACK];
+        // One stack per thread, not per ray (zeroing 64 entries per ray showed in profiles).
+        STACK.with_borrow_mut(|stack| {
+            if stack.len() <= depth {
+                stack.resize(depth + 1, Entry::default());
+            }
             self.traverse(
                 ray,
                 t0,
@@ -860,21 +923,54 @@ impl<T: Voxel> OocScene<T> {
                 isos.all,
                 intersector,
                 stats,
-                &mut stack,
+                stack,
             )
+        })
+    }
+
+    /// At the bottom of a treelet of level `tl` (below the finest published level), at
+    /// `node`: the child treelet and its index if it is resident (stamped as used), else
+    /// `None` with the miss recorded for the loader.
+    #[inline(always)]
+    fn child_treelet(&self, tl: usize, node: [u32; 3]) -> Option<(&ResidentTreelet<T>, u64)> {
+        let layout = &self.shared.meta.layout;
+        let idx = linear_index(layout.level(tl + 1).roots, node.map(u64::from));
+        let paged = tl + 1 >= self.snap.complete;
+        if let Some(child) = self.snap.levels[tl + 1].get(&idx) {
+            if paged && child.last_used.load(Ordering::Relaxed) != self.stamp {
+                child.last_used.store(self.stamp, Ordering::Relaxed);
+            }
+            return Some((child, idx));
+        }
+        if paged {
+            self.shared.record_miss(tl + 1, idx);
+        }
+        None
+    }
+
+    /// The split of inner node `node` at tree `level` and its children. One-hot axis
+    /// arithmetic keeps the node in registers (as `KdTree::children`): indexing a `[u32; 3]`
+    /// by the axis and reading it back whole stalled store forwarding on every step.
+    #[inline(always)]
+    fn split_of(&self, level: usize, node: [u32; 3]) -> NodeSplit {
+        let layout = &self.shared.meta.layout;
+        let shapes = layout.shapes();
+        let sh = &shapes[level];
+        let a = sh.axis;
+        let u = [0, 1, 2].map(|i| u32::from(a == i));
+        let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
+        let m = u64::from(na) * sh.extent[a] + sh.extent[a] / 2;
+        let split = if m < layout.cells()[a] {
+            self.shared.frame.pos[a][m as usize]
         } else {
-            let mut stack = vec![Entry::default(); depth + 1];
-            self.traverse(
-                ray,
-                t0,
-                t1,
-                &isos.set,
-                queries,
-                isos.all,
-                intersector,
-                stats,
-                &mut stack,
-            )
+            f32::INFINITY
+        };
+        NodeSplit {
+            axis: a,
+            unit: u,
+            split,
+            left: [node[0] << u[0], node[1] << u[1], node[2] << u[2]],
+            right_real: u64::from(2 * na + 1) < shapes[level + 1].count[a],
         }
     }
 
@@ -889,14 +985,11 @@ impl<T: Voxel> OocScene<T> {
         all: bool,
         intersector: C,
         stats: &mut S,
-        stack: &mut [Entry],
+        stack: &mut [Entry<f32>],
     ) -> Option<(CellHit, &'s ResidentTreelet<T>)> {
         let meta = &self.shared.meta;
         let layout = &meta.layout;
-        let shapes = layout.shapes();
-        let cells = layout.cells();
         let q = &meta.quantizer;
-        let frame = &self.shared.frame;
         let levels = &self.snap.levels;
         let render = levels.len().checked_sub(1)?;
         let mut cur: &ResidentTreelet<T> = levels[0].get(&0)?;
@@ -911,24 +1004,15 @@ impl<T: Voxel> OocScene<T> {
         'outer: loop {
             loop {
                 if level == end {
-                    if tl < render {
-                        let idx = linear_index(layout.level(tl + 1).roots, node.map(u64::from));
-                        if let Some(child) = levels[tl + 1].get(&idx) {
-                            if tl + 1 >= self.snap.complete
-                                && child.last_used.load(Ordering::Relaxed) != self.stamp
-                            {
-                                child.last_used.store(self.stamp, Ordering::Relaxed);
-                            }
-                            cur = child;
-                            tl += 1;
-                            ti = idx;
-                            end = layout.level(tl).end;
-                            h = 0;
-                            continue;
-                        }
-                        if tl + 1 >= self.snap.complete {
-                            self.shared.record_miss(tl + 1, idx);
-                        }
+                    if tl < render
+                        && let Some((child, idx)) = self.child_treelet(tl, node)
+                    {
+                        cur = child;
+                        tl += 1;
+                        ti = idx;
+                        end = layout.level(tl).end;
+                        h = 0;
+                        continue;
                     }
                     // Intersect the cell of this level's LOD voxels (Listing 7.3).
                     let o = cur.rec.voxel_origin;
@@ -955,41 +1039,40 @@ impl<T: Voxel> OocScene<T> {
                     break;
                 }
                 stats.node();
-                let sh = &shapes[level];
-                let a = sh.axis;
-                let m = u64::from(node[a]) * sh.extent[a] + sh.extent[a] / 2;
-                let split = if m < cells[a] {
-                    frame.pos[a][m as usize]
-                } else {
-                    f32::INFINITY
-                };
-                let mut left = node;
-                left[a] *= 2;
-                let mut right = left;
-                right[a] += 1;
-                let right_real = u64::from(right[a]) < shapes[level + 1].count[a];
-                let (h_left, h_right) = (2 * h + 1, 2 * h + 2);
+                let ns = self.split_of(level, node);
+                let (a, u, left) = (ns.axis, ns.unit, ns.left);
                 level += 1;
-                let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], split, ta, tb);
-                // The left child is always real; culling happens when a node is entered.
-                let push = |(far, h_far): ([u32; 3], usize), t_near, t_far| {
+                let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], ns.split, ta, tb);
+                // Children as `false` (left) / `true` (right): no node tuples through memory.
+                // The left child is always real; culling happens when a node is entered. The
+                // far child is noted, then pushed here (a pushing closure was not inlined).
+                let mut far = None;
+                let next = take_step(
+                    step,
+                    false,
+                    true,
+                    true,
+                    ns.right_real,
+                    &mut tb,
+                    |f, n, t| {
+                        far = Some((f, n, t));
+                    },
+                );
+                if let Some((f, t_near, t_far)) = far {
+                    let (node, h) = child_of(left, u, h, f);
                     stack[sp] = Entry {
-                        node: far,
+                        node,
                         level: level as u32,
-                        h: h_far as u32,
+                        h: h as u32,
                         tl: tl as u32,
                         ti,
                         t_near,
                         t_far,
                     };
                     sp += 1;
-                };
-                let (l, r) = ((left, h_left), (right, h_right));
-                match take_step(step, l, r, true, right_real, &mut tb, push) {
-                    Some((next, h_next)) => {
-                        node = next;
-                        h = h_next;
-                    }
+                }
+                match next {
+                    Some(right) => (node, h) = child_of(left, u, h, right),
                     None => break,
                 }
             }
@@ -1018,6 +1101,177 @@ impl<T: Voxel> OocScene<T> {
         }
         best
     }
+
+    /// The packet twin of [`Self::traverse`] (as [`crate::kdtree`]'s packet traversal is of
+    /// its single-ray one): up to [`PACKET_WIDTH`] [`packet_compatible`] rays walk the
+    /// treelets together with per-ray intervals in lanes, and enter a child treelet together
+    /// (it is chosen by the node, not the ray); leaves test the active rays at once
+    /// ([`packet_leaf`]) in the current treelet's voxel block. Same hits as ray by ray.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn traverse_packet<'s, C: CellIntersector, S: Stats>(
+        &'s self,
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &IsoSet<T>,
+        queries: &[CodeQuery],
+        all: bool,
+        intersector: C,
+        stats: &mut S,
+        stack: &mut [Entry<Lanes>],
+        out: &mut [Option<(CellHit, CellBlock<'s, T>)>],
+    ) {
+        let meta = &self.shared.meta;
+        let layout = &meta.layout;
+        let q = &meta.quantizer;
+        let levels = &self.snap.levels;
+        let Some(render) = levels.len().checked_sub(1) else {
+            return;
+        };
+        let Some(mut cur) = levels[0].get(&0).map(|t| &**t) else {
+            return;
+        };
+        let n = rays.len().min(PACKET_WIDTH);
+        debug_assert!(packet_compatible(&rays[..n]));
+        let p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
+        let (mut tn, mut tf) = (p.t_near, p.t_far);
+        let (mut tl, mut ti) = (0usize, 0u64);
+        let mut end = layout.level(0).end;
+        let mut node = [0u32; 3];
+        let mut level = 0usize;
+        let mut h = 0usize;
+        let mut sp = 0usize;
+        let mut best = [f32::INFINITY; PACKET_WIDTH];
+        let mut best_v = splat(f32::INFINITY);
+        'outer: loop {
+            loop {
+                let active = bits(&tn, &tf, f32x8::simd_le);
+                if active == 0 {
+                    break;
+                }
+                if level == end {
+                    if tl < render
+                        && let Some((child, idx)) = self.child_treelet(tl, node)
+                    {
+                        cur = child;
+                        tl += 1;
+                        ti = idx;
+                        end = layout.level(tl).end;
+                        h = 0;
+                        continue;
+                    }
+                    // The cell of this level's LOD voxels (Listing 7.3), for every active ray.
+                    let o = cur.rec.voxel_origin;
+                    let cell = [0, 1, 2].map(|a| (u64::from(node[a]) - o[a]) as usize);
+                    let block = CellBlock {
+                        frame: &cur.frame,
+                        voxels: &cur.rec.voxels,
+                        dims: cur.rec.voxel_dims,
+                    };
+                    best_v = packet_leaf(
+                        block.frame,
+                        block.voxels,
+                        block.dims,
+                        cell,
+                        &p,
+                        rays,
+                        t0,
+                        t1,
+                        active,
+                        isos,
+                        intersector,
+                        stats,
+                        &mut best,
+                        |k, hit| out[k] = Some((hit, block)),
+                    );
+                    break;
+                }
+                let c = q.get(&cur.rec.nodes, h);
+                if !(all || queries.iter().any(|x| x.passes(c[0], c[1]))) {
+                    break;
+                }
+                stats.node();
+                let ns = self.split_of(level, node);
+                let (a, u, left) = (ns.axis, ns.unit, ns.left);
+                level += 1;
+                let ts = map2(&p.org[a], &p.inv[a], |o, v| {
+                    (f32x8::splat(ns.split) - o) * v
+                });
+                // The packet enters one child when every active ray does (as in-core).
+                let beyond = bits(&ts, &tf, f32x8::simd_gt);
+                let before = bits(&ts, &tn, f32x8::simd_lt);
+                let visit = if beyond & active == active {
+                    Visit::Near
+                } else if before & active == active {
+                    Visit::Far
+                } else {
+                    Visit::Both {
+                        near_t_far: map2(&tf, &ts, f32x8::min),
+                        far_t_near: map2(&tn, &ts, f32x8::max),
+                    }
+                };
+                let step = Step {
+                    near_is_left: p.dir_pos[a],
+                    visit,
+                };
+                let mut far = None;
+                let next = take_step(
+                    step,
+                    false,
+                    true,
+                    true,
+                    ns.right_real,
+                    &mut tf,
+                    |f, n, t| {
+                        far = Some((f, n, t));
+                    },
+                );
+                if let Some((f, t_near, t_far)) = far {
+                    let (node, h) = child_of(left, u, h, f);
+                    stack[sp] = Entry {
+                        node,
+                        level: level as u32,
+                        h: h as u32,
+                        tl: tl as u32,
+                        ti,
+                        t_near,
+                        t_far,
+                    };
+                    sp += 1;
+                }
+                match next {
+                    Some(right) => (node, h) = child_of(left, u, h, right),
+                    None => break,
+                }
+            }
+            loop {
+                if sp == 0 {
+                    break 'outer;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                let e_tf = map2(&e.t_far, &best_v, f32x8::min);
+                if bits(&e.t_near, &e_tf, f32x8::simd_le) != 0 {
+                    node = e.node;
+                    level = e.level as usize;
+                    h = e.h as usize;
+                    if e.tl as usize != tl || e.ti != ti {
+                        tl = e.tl as usize;
+                        ti = e.ti;
+                        match levels[tl].get(&ti) {
+                            Some(t) => cur = t,
+                            None => break 'outer,
+                        }
+                        end = layout.level(tl).end;
+                    }
+                    tn = e.t_near;
+                    tf = e_tf;
+                    continue 'outer;
+                }
+            }
+        }
+    }
 }
 
 impl<T: Voxel> CellTrace<T> for OocScene<T> {
@@ -1045,6 +1299,44 @@ impl<T: Voxel> CellTrace<T> for OocScene<T> {
         };
         Some((h, block))
     }
+
+    #[inline]
+    fn cell_hits_packet<'s, C: CellIntersector, S: Stats>(
+        &'s self,
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &OocIsovalues<T>,
+        intersector: C,
+        stats: &mut S,
+        out: &mut [Option<(CellHit, CellBlock<'s, T>)>],
+    ) {
+        let n = rays.len().min(PACKET_WIDTH);
+        for o in &mut out[..n] {
+            *o = None;
+        }
+        if isos.set.is_empty() || isos.count == 0 || n == 0 {
+            return;
+        }
+        let depth = self.shared.meta.layout.depth();
+        PACKET_STACK.with_borrow_mut(|stack| {
+            if stack.len() <= depth {
+                stack.resize(depth + 1, Entry::default());
+            }
+            self.traverse_packet(
+                &rays[..n],
+                t0,
+                t1,
+                &isos.set,
+                &isos.queries[..isos.count],
+                isos.all,
+                intersector,
+                stats,
+                stack,
+                out,
+            );
+        });
+    }
 }
 
 impl<T: Voxel> IsoScene for OocScene<T> {
@@ -1068,6 +1360,23 @@ impl<T: Voxel> IsoScene for OocScene<T> {
         stats: &mut S,
     ) -> Option<Hit> {
         crate::dispatch_intersector!(self.intersector, c => first_hit_with(self, ray, t_min, t_max, isos, c, stats))
+    }
+
+    fn first_hit_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &OocIsovalues<T>,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
+        crate::dispatch_intersector!(self.intersector, c => {
+            for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                let base = start * PACKET_WIDTH;
+                first_hits_packet_with(self, chunk, &t_min[base..], &t_max[base..], isos, c, &mut out[base..], stats);
+            }
+        });
     }
 }
 
@@ -1238,6 +1547,92 @@ mod tests {
         )
         .unwrap();
         (grid, voxels, vol)
+    }
+
+    /// Packets of 16 rays: 4×4 fans from random eyes (one packet each, as a camera's tiles
+    /// are), then the random rays of [`rays`] in groups of 16 (mixed directions: groups of 8
+    /// or one by one), some with a finite `t_max`.
+    fn packets(bounds: Aabb, fans: usize) -> (Vec<Ray>, Vec<f32>) {
+        let mut rng = crate::math::rng::Rng::new(777);
+        let mut rnd = || rng.unit_f32();
+        let c = (bounds.min + bounds.max) * 0.5;
+        let ext = bounds.max - bounds.min;
+        let mut out = Vec::new();
+        for _ in 0..fans {
+            let eye =
+                c + Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize() * ext.length();
+            let target = bounds.min + Vec3::new(rnd(), rnd(), rnd()) * ext;
+            let spread = 0.05 + 0.6 * rnd();
+            for j in 0..4 {
+                for i in 0..4 {
+                    let off = Vec3::new(i as f32 - 1.5, j as f32 - 1.5, 0.3 * (i as f32)) * spread;
+                    out.push(Ray::new(eye, (target + off - eye).normalize()));
+                }
+            }
+        }
+        out.extend(rays(bounds, 16 * fans));
+        let t_max = (0..out.len())
+            .map(|i| {
+                if i % 5 == 3 {
+                    ext.length() * 0.9
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .collect();
+        (out, t_max)
+    }
+
+    /// Every packet hit equals the ray's single-ray hit (bit for bit), whichever treelets
+    /// are resident.
+    fn assert_packets_equal_single_rays(scene: &OocScene<f32>, isos: &[f32]) -> usize {
+        let (all, t_max) = packets(scene.world_bounds(), 300);
+        let t_min = vec![0.0; all.len()];
+        let mut packet = vec![None; all.len()];
+        scene.first_hit_packet(&all, &t_min, &t_max, isos, &mut packet, &mut NoStats);
+        let mut hits = 0;
+        for (i, r) in all.iter().enumerate() {
+            let single = scene.first_hit(r, t_min[i], t_max[i], isos, &mut NoStats);
+            assert_eq!(packet[i], single, "ray {i}: {r:?}");
+            hits += usize::from(single.is_some());
+        }
+        hits
+    }
+
+    #[test]
+    fn packets_hit_as_single_rays_at_every_level_and_when_paged() {
+        let dims = [31, 23, 17];
+        let isos = [4.0f32, 6.5];
+        let (_, _, vol) = setup(dims, 4, u64::MAX);
+        // Only the top treelet (level 0), then every level.
+        let coarse = vol.scene(Intersector::Exact);
+        assert_eq!(coarse.level(), 0);
+        let n: usize = [[4.0f32], [8.0], [12.0], [16.0]]
+            .iter()
+            .map(|iso| assert_packets_equal_single_rays(&coarse, iso))
+            .sum();
+        assert!(n > 100, "{n}");
+        drop(coarse);
+        vol.set_isovalues(&isos);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        assert_eq!(vol.loaded_levels(), vol.level_count());
+        for intersector in [Intersector::Exact, Intersector::Linear] {
+            let fine = vol.scene(intersector);
+            assert!(assert_packets_equal_single_rays(&fine, &isos) > 500);
+        }
+        // A budget below the finest level: it is paged in as frames ask for it, so child
+        // treelets are missing under some nodes and resident under others.
+        let (_, _, paged) = setup(dims, 4, vol.resident_bytes() / 2);
+        paged.set_isovalues(&isos);
+        assert!(paged.wait_until_finished(Duration::from_secs(30)));
+        assert!(paged.budget_limited());
+        assert!(paged.loaded_levels() < paged.level_count());
+        let first = paged.scene(Intersector::Exact);
+        assert!(assert_packets_equal_single_rays(&first, &isos) > 500);
+        drop(first);
+        assert!(paged.wait_until_finished(Duration::from_secs(30)));
+        let scene = paged.scene(Intersector::Exact);
+        assert!(assert_packets_equal_single_rays(&scene, &isos) > 500);
     }
 
     #[test]
