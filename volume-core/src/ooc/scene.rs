@@ -24,7 +24,10 @@
 //! and normal code ([`intersect_cell`], [`crate::grid::hit`]) through a
 //! treelet-local [`TraversalFrame`]. At the finest level the cells, voxels and positions are
 //! the in-core ones, so hits equal [`crate::grid::GridScene`]'s; quantized ranges only
-//! add visited nodes.
+//! add visited nodes. Primary rays go as packets of 16 (`traverse_packet`, the twin of the
+//! single-ray `traverse`, with the in-core packets' ray set-up and leaf test from
+//! [`crate::kdtree`]): the packet enters a child treelet together, since the node, not the
+//! ray, names it.
 
 use std::cell::RefCell;
 use std::collections::HashMap;
