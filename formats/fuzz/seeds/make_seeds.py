@@ -173,6 +173,10 @@ def image_seeds(data_dir):
     seed("metaimage", "bad_zlib_cut.mha", mha[: len(mha) - 100])
     seed("metaimage", "bad_dims_huge.mha", mha.replace(b"DimSize = 10 8 6", b"DimSize = 99999 99999 99999"))
     seed("metaimage", "bad_type.mha", mha.replace(b"MET_FLOAT", b"MET_STRING"))
+    # A fuzzing timeout: a printf pattern of 371,225 slices with 371-character names, whose
+    # names the harness once listed in full before writing the first few.
+    seed("metaimage", "bad_pattern_371225_long_names.mhd",
+         b"NDims = 3\nDimSize = 2 2 371225\nElementType = MET_UCHAR\nElementDataFile = s%371+34410d3\n")
     for f in sorted(os.listdir(os.path.join(data_dir, "vtk_image"))):
         if f.endswith(".vti") or f.endswith(".vtk"):
             seed("vti", "ok_" + f, read("vtk_image", f))
