@@ -240,6 +240,8 @@ def dicom_seeds(dicom_dir):
     for name, src in ok.items():
         with open(os.path.join(dicom_dir, src), "rb") as f:
             put("dicom", name, f.read())
+    # seeds/dicom/bad_oom_value_length_not_multiple.dcm is not made here: it is a fuzzing
+    # finding kept byte for byte (docs/reliability.md, Fuzzing).
 
 
 if __name__ == "__main__":
