@@ -108,52 +108,54 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
     stats: &mut S,
 ) {
     let n = rays.len().min(PACKET_WIDTH);
-    let frame = scene.frame();
     let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
     let mut t0 = [f32::INFINITY; PACKET_WIDTH];
     let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
-    // Rays from one eye (a pinhole camera) share the origin's f64 transform.
-    let mut last_origin: Option<([u32; 3], Vec3)> = None;
-    for i in 0..n {
+    for _ in 0..n {
         stats.ray();
-        let bits = rays[i].origin.to_array().map(f32::to_bits);
-        let origin = match last_origin {
-            Some((b, o)) if b == bits => o,
-            _ => {
-                let o = frame.local_origin(rays[i].origin);
-                last_origin = Some((bits, o));
-                o
-            }
-        };
-        local[i] = LocalRay::new(origin, frame.local_dir(rays[i].dir));
-        if let Some((a, b)) = frame.clip(&local[i], t_min[i], t_max[i]) {
-            t0[i] = a;
-            t1[i] = b;
-        }
     }
+    let (nonzero, positive) = scene
+        .frame()
+        .to_local_clipped(rays, t_min, t_max, &mut local, &mut t0, &mut t1);
+    let lanes = (1u32 << n) - 1;
+    // `packet_compatible` from the lane masks: no zero component, one sign per axis.
+    let one_packet = n > 0 && nonzero == lanes && positive.iter().all(|&p| p == 0 || p == lanes);
     let mut cell_hits = [None; PACKET_WIDTH];
-    // The whole group as one packet if it can be; else groups of 8 (a packet, or one by
-    // one: rays on both sides of an axis-parallel direction).
-    let groups = if packet_compatible(&local[..n]) { n } else { 8 };
-    for start in (0..n).step_by(groups.max(1)) {
-        let end = (start + groups).min(n);
-        let (l, a, b) = (&local[start..end], &t0[start..end], &t1[start..end]);
-        if packet_compatible(l) {
-            scene.cell_hits_packet(
-                l,
-                a,
-                b,
-                isos,
-                intersector,
-                stats,
-                &mut cell_hits[start..end],
-            );
-            continue;
-        }
-        for i in start..end {
-            if t0[i] <= t1[i] {
-                // Clipping again inside `cell_hit` changes nothing (a slab test of the same box).
-                cell_hits[i] = scene.cell_hit(&local[i], t0[i], t1[i], isos, intersector, stats);
+    if one_packet {
+        scene.cell_hits_packet(
+            &local[..n],
+            &t0[..n],
+            &t1[..n],
+            isos,
+            intersector,
+            stats,
+            &mut cell_hits[..n],
+        );
+    } else {
+        // Groups of 8: a packet, or one by one (rays on both sides of an axis-parallel
+        // direction).
+        for start in (0..n).step_by(8) {
+            let end = (start + 8).min(n);
+            let (l, a, b) = (&local[start..end], &t0[start..end], &t1[start..end]);
+            if packet_compatible(l) {
+                scene.cell_hits_packet(
+                    l,
+                    a,
+                    b,
+                    isos,
+                    intersector,
+                    stats,
+                    &mut cell_hits[start..end],
+                );
+                continue;
+            }
+            for i in start..end {
+                if t0[i] <= t1[i] {
+                    // Clipping again inside `cell_hit` changes nothing (a slab test of the
+                    // same box).
+                    cell_hits[i] =
+                        scene.cell_hit(&local[i], t0[i], t1[i], isos, intersector, stats);
+                }
             }
         }
     }

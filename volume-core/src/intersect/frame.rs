@@ -159,6 +159,127 @@ impl TraversalFrame {
         d
     }
 
+    /// [`TraversalFrame::to_local`] and [`TraversalFrame::clip`] for up to `N` rays at once:
+    /// `local[i]` and, where the ray meets the bounds within `[t_min[i], t_max[i]]`, that
+    /// range in `t0[i]`, `t1[i]` (else `+inf`, `-inf`). The directions' `f64` transform,
+    /// reciprocals and slab test run lane-wise over plain arrays (the compiler vectorises
+    /// them), with the scalar paths' operations in their order, so every value is
+    /// bit-identical to the per-ray calls (tested). Rays from one eye share the origin's
+    /// transform. Returns the lanes whose direction has no zero component and the lanes with
+    /// each axis' direction positive (bit `i` = ray `i`), which decide
+    /// [`crate::kdtree::packet_compatible`].
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    pub fn to_local_clipped<const N: usize>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        local: &mut [LocalRay; N],
+        t0: &mut [f32; N],
+        t1: &mut [f32; N],
+    ) -> (u32, [u32; 3]) {
+        const { assert!(N <= 32, "lane masks are u32") };
+        let n = rays.len().min(N);
+        let mut org = [[0.0f32; N]; 3];
+        let mut last_origin: Option<([u32; 3], Vec3)> = None;
+        // Directions as lanes: `d[axis][ray]`; padding lanes stay 0 and are not returned.
+        let mut d = [[0.0f64; N]; 3];
+        let (mut lo, mut hi) = ([0.0f32; N], [0.0f32; N]);
+        for (i, ray) in rays[..n].iter().enumerate() {
+            let bits = ray.origin.to_array().map(f32::to_bits);
+            let o = match last_origin {
+                Some((b, o)) if b == bits => o,
+                _ => {
+                    let o = self.local_origin(ray.origin);
+                    last_origin = Some((bits, o));
+                    o
+                }
+            };
+            for a in 0..3 {
+                org[a][i] = o[a];
+                d[a][i] = f64::from(ray.dir[a]);
+            }
+            lo[i] = t_min[i];
+            hi[i] = t_max[i];
+        }
+        if let Some(inv) = self.grid_from_world {
+            // glam's `transform_vector3`: x_axis·x + y_axis·y + z_axis·z, left to right.
+            let m = inv.matrix3;
+            let [x, y, z] = d;
+            for (a, da) in d.iter_mut().enumerate() {
+                for i in 0..N {
+                    da[i] = m.x_axis[a] * x[i] + m.y_axis[a] * y[i] + m.z_axis[a] * z[i];
+                }
+            }
+        }
+        let mut dir = [[0.0f32; N]; 3];
+        for a in 0..3 {
+            let u = self.units_per_grid[a];
+            for i in 0..N {
+                dir[a][i] = (d[a][i] * u) as f32;
+            }
+        }
+        // `local_dir`'s flush of negligible components (glam's `max_element`: `a > b ? a : b`).
+        let gt_max = |a: f32, b: f32| if a > b { a } else { b };
+        let mut tiny = [0.0f32; N];
+        for i in 0..N {
+            let m = gt_max(gt_max(dir[0][i].abs(), dir[1][i].abs()), dir[2][i].abs());
+            tiny[i] = m * 1e-20;
+        }
+        let mut inv = [[0.0f32; N]; 3];
+        let mut nonzero = u32::MAX;
+        let mut positive = [0u32; 3];
+        let mut dead = [false; N];
+        let empty = self.is_empty();
+        for a in 0..3 {
+            let upper = self.upper[a];
+            for i in 0..N {
+                let v = if dir[a][i].abs() <= tiny[i] {
+                    0.0
+                } else {
+                    dir[a][i]
+                };
+                dir[a][i] = v;
+                inv[a][i] = 1.0 / v;
+                // `slab` against `[0, upper]`, one axis.
+                let o = org[a][i];
+                let ta = (0.0 - o) * inv[a][i];
+                let tb = (upper - o) * inv[a][i];
+                let (near, far) = if v > 0.0 { (ta, tb) } else { (tb, ta) };
+                if v == 0.0 {
+                    dead[i] |= !(o >= 0.0 && o <= upper);
+                } else {
+                    lo[i] = lo[i].max(near);
+                    hi[i] = hi[i].min(far);
+                }
+            }
+            for (i, &v) in dir[a][..n].iter().enumerate() {
+                if v == 0.0 {
+                    nonzero &= !(1 << i);
+                }
+                if v > 0.0 {
+                    positive[a] |= 1 << i;
+                }
+            }
+        }
+        for i in 0..n {
+            local[i] = LocalRay {
+                origin: Vec3::new(org[0][i], org[1][i], org[2][i]),
+                dir: Vec3::new(dir[0][i], dir[1][i], dir[2][i]),
+                inv_dir: Vec3::new(inv[0][i], inv[1][i], inv[2][i]),
+            };
+            let meets = !empty && !dead[i] && lo[i] <= hi[i];
+            (t0[i], t1[i]) = if meets {
+                (lo[i], hi[i])
+            } else {
+                (f32::INFINITY, f32::NEG_INFINITY)
+            };
+        }
+        let lanes = if n >= 32 { u32::MAX } else { (1u32 << n) - 1 };
+        (nonzero & lanes, positive)
+    }
+
     /// The ray's overlap with the volume bounds, clipped to `[t_min, t_max]`.
     #[inline]
     pub fn clip(&self, ray: &LocalRay, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
@@ -273,6 +394,96 @@ mod tests {
         let n = f.world_normal(DVec3::new(2.0, 0.0, 0.0)).unwrap();
         assert!((n - Vec3::Y).length() < 1e-6);
         assert!(f.world_normal(DVec3::ZERO).is_none());
+    }
+
+    #[test]
+    fn lane_wise_set_up_equals_the_per_ray_mapping_and_clip() {
+        use crate::math::rng::Rng;
+        let mut rng = Rng::new(5);
+        let base = Grid::uniform([9, 7, 5], [1e3, -20.0, 3.0], [0.5, 2.0, 0.7]).unwrap();
+        let rot = DAffine3::from_rotation_z(0.3) * DAffine3::from_rotation_x(-1.1);
+        let grids = [
+            base.clone(),
+            Grid::new([9, 7, 5], base.axes().clone(), Some(rot)).unwrap(),
+            Grid::uniform([1, 7, 5], [0.0; 3], [1.0; 3]).unwrap(),
+        ];
+        let mut cases = [0usize; 3];
+        for g in &grids {
+            let f = TraversalFrame::new(g);
+            let b = f.world_bounds();
+            for _ in 0..400 {
+                let n = 1 + rng.below(16) as usize;
+                let eye = b.center()
+                    + Vec3::new(
+                        rng.range_f32(-9.0, 9.0),
+                        rng.range_f32(-9.0, 9.0),
+                        rng.range_f32(-9.0, 9.0),
+                    );
+                let shared = rng.below(2) == 0;
+                let rays: Vec<Ray> = (0..n)
+                    .map(|_| {
+                        let o = if shared {
+                            eye
+                        } else {
+                            eye + Vec3::splat(rng.range_f32(-1.0, 1.0))
+                        };
+                        let mut d = (b.center() - o)
+                            + Vec3::new(
+                                rng.range_f32(-4.0, 4.0),
+                                rng.range_f32(-4.0, 4.0),
+                                rng.range_f32(-4.0, 4.0),
+                            );
+                        // Zero and negligible components (rays in face planes).
+                        match rng.below(6) {
+                            0 => d.x = 0.0,
+                            1 => d.y = d.z * 1e-22,
+                            _ => {}
+                        }
+                        Ray::new(o, d)
+                    })
+                    .collect();
+                let t_min: Vec<f32> = (0..n).map(|_| rng.range_f32(-1.0, 2.0)).collect();
+                let t_max: Vec<f32> = (0..n)
+                    .map(|_| {
+                        if rng.below(2) == 0 {
+                            f32::INFINITY
+                        } else {
+                            rng.range_f32(0.0, 30.0)
+                        }
+                    })
+                    .collect();
+                let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ONE); 16];
+                let (mut t0, mut t1) = ([0.0; 16], [0.0; 16]);
+                let (nonzero, positive) =
+                    f.to_local_clipped(&rays, &t_min, &t_max, &mut local, &mut t0, &mut t1);
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                for i in 0..n {
+                    let want = f.to_local(&rays[i]);
+                    assert_eq!(bits(local[i].origin), bits(want.origin), "origin {i}");
+                    assert_eq!(bits(local[i].dir), bits(want.dir), "dir {i}");
+                    assert_eq!(bits(local[i].inv_dir), bits(want.inv_dir), "inv {i}");
+                    let clip = f.clip(&want, t_min[i], t_max[i]);
+                    let got = (t0[i] <= t1[i]).then_some((t0[i], t1[i]));
+                    assert_eq!(
+                        got.map(|(a, b)| (a.to_bits(), b.to_bits())),
+                        clip.map(|(a, b)| (a.to_bits(), b.to_bits())),
+                        "clip {i}"
+                    );
+                    if clip.is_none() {
+                        assert_eq!((t0[i], t1[i]), (f32::INFINITY, f32::NEG_INFINITY));
+                    }
+                    cases[usize::from(clip.is_some())] += 1;
+                    cases[2] += usize::from(want.dir.x == 0.0);
+                    assert_eq!(nonzero >> i & 1 == 1, want.dir.cmpne(Vec3::ZERO).all());
+                    for (a, p) in positive.iter().enumerate() {
+                        assert_eq!(p >> i & 1 == 1, want.dir[a] > 0.0);
+                    }
+                }
+                assert_eq!(nonzero >> n, 0);
+            }
+        }
+        // Missed, met, and rays in an x face plane.
+        assert!(cases.iter().all(|&c| c > 100), "cases {cases:?}");
     }
 
     #[test]
