@@ -630,6 +630,37 @@ pub(crate) fn first_root_f64(
     if f0 == 0.0 {
         return Some(0.0);
     }
+    if !monotone_on_unit(k) {
+        return first_root_by_pieces(k, tol, refine);
+    }
+    // No extremum in [0, 1]: one piece, no touch to test; what the pieces below do then.
+    let f1 = eval64(k, 1.0);
+    if f1 == 0.0 {
+        return Some(1.0);
+    }
+    ((f1 > 0.0) != (f0 > 0.0)).then(|| refine(k, 0.0, f0, 1.0))
+}
+
+/// True when the cubic `k` is strictly monotone on `[0, 1]`: the Bernstein coefficients of
+/// its derivative `3a·s² + 2b·s + c` there (`c`, `c + b`, `3a + 2b + c`), whose convex hull
+/// holds `f'` on `[0, 1]`, share a sign by more than their rounding (a few ulps of
+/// `|a| + |b| + |c|`). Most cells a ray crosses are: they then skip the extrema's square
+/// root and Newton steps.
+#[inline(always)]
+fn monotone_on_unit(k: &[f64; 4]) -> bool {
+    let (b0, b1, b2) = (k[2], k[2] + k[1], 3.0 * k[0] + 2.0 * k[1] + k[2]);
+    let slack = 16.0 * f64::EPSILON * (k[0].abs() + k[1].abs() + k[2].abs());
+    (b0 > slack && b1 > slack && b2 > slack) || (b0 < -slack && b1 < -slack && b2 < -slack)
+}
+
+/// [`first_root_f64`] for any cubic (`k[3] != 0`): the monotone pieces between the
+/// derivative's roots, in order.
+fn first_root_by_pieces(
+    k: &[f64; 4],
+    tol: f64,
+    refine: impl Fn(&[f64; 4], f64, f64, f64) -> f64,
+) -> Option<f64> {
+    let f0 = k[3];
     let mut ext = [0.0f64; 2];
     let mut n = 0;
     let (qa, qb, qc) = (3.0 * k[0], 2.0 * k[1], k[2]);
@@ -774,6 +805,53 @@ mod tests {
         // Root at the exit end.
         let k = [0.0, 0.0, 1.0, -1.0];
         assert_eq!(first_root_f64(&k, 1e-15, bisect), Some(1.0));
+    }
+
+    #[test]
+    fn monotone_cubics_take_the_one_piece_the_general_path_takes() {
+        // Random cubics with roots inside and outside [0, 1]: where the derivative test
+        // certifies monotonicity, the short path gives exactly what splitting at the
+        // derivative's roots gives (no extremum lies inside [0, 1] then).
+        let mut rng = crate::math::rng::Rng::new(17);
+        let (mut monotone, mut hits, mut general) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let r = [0, 1, 2].map(|_| f64::from(rng.range_f32(-1.0, 2.0)));
+            let scale = f64::from(rng.range_f32(-3.0, 3.0));
+            // scale·(s − r0)(s − r1)(s − r2), or a quadratic or a line.
+            let k = match rng.below(3) {
+                0 => [
+                    scale,
+                    -scale * (r[0] + r[1] + r[2]),
+                    scale * (r[0] * r[1] + r[1] * r[2] + r[0] * r[2]),
+                    -scale * r[0] * r[1] * r[2],
+                ],
+                1 => [0.0, scale, -scale * (r[0] + r[1]), scale * r[0] * r[1]],
+                _ => [0.0, 0.0, scale, -scale * r[0]],
+            };
+            if k[3] == 0.0 {
+                continue;
+            }
+            let want = first_root_by_pieces(&k, 1e-15, bisect);
+            if monotone_on_unit(&k) {
+                monotone += 1;
+                hits += usize::from(want.is_some());
+                assert_eq!(
+                    first_root_f64(&k, 1e-15, bisect).map(f64::to_bits),
+                    want.map(f64::to_bits),
+                    "{k:?}"
+                );
+                // Monotone: at most one sign change, so no root inside before the found one.
+                if let Some(s) = want {
+                    assert!((eval64(&k, s * 0.5) > 0.0) == (k[3] > 0.0) || s == 0.0);
+                }
+            } else {
+                general += 1;
+            }
+        }
+        assert!(
+            monotone > 5000 && hits > 1000 && general > 2000,
+            "{monotone} {hits} {general}"
+        );
     }
 
     #[test]
