@@ -48,7 +48,7 @@ use volume_core::tet::{BvhBuilder, BvhOptions};
 use super::open_args::{MeshArgs, OocArgs, OpenArgs};
 use super::render::{
     IsoSpec, ViewArgs, open_with_flags, packet_side, parse_intersector, parse_iso, parse_size,
-    render_grid, surfaces_for,
+    render_grid_into, surfaces_for,
 };
 use crate::progress::Progress;
 use crate::scene::{AnyScene, OocData, SceneKind, SceneOptions, open_scene};
@@ -323,27 +323,39 @@ fn median(v: &[f64]) -> f64 {
     }
 }
 
-/// Times `frames` frames of `draw` (after a warm-up) and one statistics frame.
+/// Times `frames` frames of `draw` (after a warm-up) and one statistics frame, all drawn
+/// into one reused [`Frame`], as the viewer redraws (a fresh frame per call would also time
+/// the kernel zeroing 8 MB of new pages at 1024², which an interactive redraw never pays).
 fn time_frames(
     name: &str,
     settings: &RenderSettings,
     frames: usize,
-    draw: &dyn Fn(&RenderSettings) -> Option<Frame>,
+    draw: &dyn Fn(&RenderSettings, &mut Frame) -> bool,
 ) -> anyhow::Result<ConfigReport> {
     let progress = Progress::bar(frames as u64 + 2, format!("bench {name}"));
-    let warm = draw(settings).context("cancelled")?;
+    let mut frame = Frame::default();
+    let drawn = |ok: bool| {
+        if ok {
+            Ok(())
+        } else {
+            Err(anyhow::anyhow!("cancelled"))
+        }
+    };
+    drawn(draw(settings, &mut frame))?;
+    let primary_rays = frame.rays.primary;
     progress.inc(1);
     let mut frame_ms = Vec::with_capacity(frames);
     for _ in 0..frames {
-        let f = draw(settings).context("cancelled")?;
-        frame_ms.push(f.elapsed.as_secs_f64() * 1e3);
+        drawn(draw(settings, &mut frame))?;
+        frame_ms.push(frame.elapsed.as_secs_f64() * 1e3);
         progress.inc(1);
     }
     let stats_settings = RenderSettings {
         collect_stats: true,
         ..settings.clone()
     };
-    let s = draw(&stats_settings).context("cancelled")?;
+    drawn(draw(&stats_settings, &mut frame))?;
+    let s = &frame;
     progress.inc(1);
     let c = s.counts;
     let rays = if c.rays > 0 {
@@ -357,7 +369,7 @@ fn time_frames(
         median_ms,
         frame_ms,
         frames_per_second: 1e3 / median_ms.max(1e-9),
-        rays_per_second: warm.rays.primary as f64 / (median_ms / 1e3).max(1e-12),
+        rays_per_second: primary_rays as f64 / (median_ms / 1e3).max(1e-12),
         nodes_per_ray: c.nodes_visited as f64 / rays,
         leaves_per_ray: c.leaves_visited as f64 / rays,
         intersections_per_ray: c.intersection_tests as f64 / rays,
@@ -387,8 +399,8 @@ pub fn time_config(
     frames: usize,
 ) -> anyhow::Result<ConfigReport> {
     let go = AtomicBool::new(false);
-    time_frames(name, settings, frames, &|s| {
-        render_grid(scene, dda, camera, s, &go)
+    time_frames(name, settings, frames, &|s, frame| {
+        render_grid_into(scene, dda, camera, s, &go, frame)
     })
     .map(without_mesh_counts)
 }
@@ -677,8 +689,8 @@ fn measure_tet(args: &Args, mut s: Setup) -> anyhow::Result<BenchReport> {
             ..settings.clone()
         };
         let scene = tet.scene();
-        time_frames(&name, &st, args.frames, &|x| {
-            volume_core::render::render(scene, &camera, x, &go)
+        time_frames(&name, &st, args.frames, &|x, frame| {
+            volume_core::render::render_into(scene, &camera, x, &go, frame)
         })
     };
     configs.push(timed(
@@ -781,9 +793,16 @@ fn time_ooc_frames(
     let (_, level) = o
         .render_with_level(camera, settings, &go)
         .context("cancelled")?;
-    let r = time_frames(&format!("isot-level-{level}"), settings, frames, &|x| {
-        o.render_with_level(camera, x, &go).map(|(f, _)| f)
-    })?;
+    let r = time_frames(
+        &format!("isot-level-{level}"),
+        settings,
+        frames,
+        &|x, frame| {
+            o.render_with_level(camera, x, &go)
+                .map(|(f, _)| *frame = f)
+                .is_some()
+        },
+    )?;
     Ok((without_mesh_counts(r), level))
 }
 

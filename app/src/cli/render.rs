@@ -32,7 +32,7 @@ use volume_core::render::{
 use super::npy;
 use super::open_args::{MeshArgs, OocArgs, OpenArgs, scene_options};
 use crate::progress::Progress;
-use crate::scene::{AnyScene, RenderVisitor, open_scene};
+use crate::scene::{AnyScene, RenderIntoVisitor, open_scene};
 
 /// Colours given to `--iso` values without one, in order.
 pub const PALETTE: [[f32; 3]; 6] = [
@@ -384,11 +384,25 @@ pub fn render_grid(
     settings: &RenderSettings,
     cancel: &AtomicBool,
 ) -> Option<Frame> {
-    let v = RenderVisitor {
+    let mut frame = Frame::default();
+    render_grid_into(scene, dda, camera, settings, cancel, &mut frame).then_some(frame)
+}
+
+/// [`render_grid`] into `frame`, reusing its buffers; false when cancelled.
+pub fn render_grid_into(
+    scene: &AnyGridScene,
+    dda: bool,
+    camera: &Camera,
+    settings: &RenderSettings,
+    cancel: &AtomicBool,
+    frame: &mut Frame,
+) -> bool {
+    let v = RenderIntoVisitor {
         camera,
         settings,
         colorings: &[],
         cancel,
+        frame,
     };
     if dda {
         scene.visit_dda(v)
