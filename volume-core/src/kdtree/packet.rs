@@ -19,7 +19,7 @@ use super::step::{Step, Visit};
 use super::{Entry, INLINE_STACK, KdTree};
 use crate::intersect::{
     CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, RaysX8, TraversalFrame,
-    intersect_prepared_cell, intersect_prepared_cell_x8,
+    intersect_prepared_cell_x8,
 };
 use crate::render::Stats;
 use crate::voxel::Voxel;
@@ -30,10 +30,6 @@ pub(crate) const HALVES: usize = 2;
 
 /// Rays per packet.
 pub const PACKET_WIDTH: usize = 8 * HALVES;
-
-/// Active rays from which a leaf tests them all at once in `f32x8` lanes; fewer take the
-/// scalar test per ray (same results; SIMD lanes cost about as much as a few scalar tests).
-const LEAF_LANES_MIN: u32 = 3;
 
 /// Lanes of a packet: `HALVES` vectors of 8.
 pub(crate) type Lanes = [f32x8; HALVES];
@@ -165,9 +161,11 @@ impl PacketRays {
 
 /// The leaf step of a packet traversal, written once for the in-core and out-of-core trees:
 /// tests cell `cell` of the block (`frame`, `voxels`, `dims`) against the `active` rays (bit
-/// `k` = ray `k`), all at once in `f32x8` lanes or, for few rays, one by one, each over its
-/// whole clipped interval `[t0[k], t1[k]]` as the single-ray traversal does; calls
-/// `on_hit(k, hit)` for a hit nearer than `best[k]` and returns the updated `best` as lanes.
+/// `k` = ray `k`) in `f32x8` lanes, each over its whole clipped interval as the single-ray
+/// traversal does (lanes equal the scalar test bit for bit, [`crate::intersect::packet`]);
+/// calls `on_hit(k, hit)` for a hit nearer than `best[k]` and returns the updated `best` as
+/// lanes. Even one active ray of a half takes the lanes: measured against a scalar test for
+/// halves of one or two rays, the lanes were no slower (docs/benchmarks.md).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
@@ -176,9 +174,6 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     dims: [usize; 3],
     cell: [usize; 3],
     p: &PacketRays,
-    rays: &[LocalRay],
-    t0: &[f32],
-    t1: &[f32],
     active: u32,
     isos: &IsoSet<T>,
     intersector: C,
@@ -194,37 +189,25 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     };
     for (h, half_rays) in p.leaf.iter().enumerate() {
         let half = (active >> (8 * h)) & 0xff;
-        if half.count_ones() >= LEAF_LANES_MIN {
-            let hits = intersect_prepared_cell_x8(&pc, half_rays, half, isos, intersector, stats);
-            let mut b = hits.mask;
-            while b != 0 {
-                let i = b.trailing_zeros() as usize;
-                b &= b - 1;
-                let k = 8 * h + i;
-                if hits.t[i] < best[k] {
-                    best[k] = hits.t[i];
-                    on_hit(
-                        k,
-                        CellHit {
-                            t: hits.t[i],
-                            surface: hits.surface[i],
-                            cell,
-                        },
-                    );
-                }
-            }
-        } else {
-            let mut b = half;
-            while b != 0 {
-                let k = 8 * h + b.trailing_zeros() as usize;
-                b &= b - 1;
-                if let Some(hit) =
-                    intersect_prepared_cell(&pc, &rays[k], t0[k], t1[k], isos, intersector, stats)
-                    && hit.t < best[k]
-                {
-                    best[k] = hit.t;
-                    on_hit(k, hit);
-                }
+        if half == 0 {
+            continue;
+        }
+        let hits = intersect_prepared_cell_x8(&pc, half_rays, half, isos, intersector, stats);
+        let mut b = hits.mask;
+        while b != 0 {
+            let i = b.trailing_zeros() as usize;
+            b &= b - 1;
+            let k = 8 * h + i;
+            if hits.t[i] < best[k] {
+                best[k] = hits.t[i];
+                on_hit(
+                    k,
+                    CellHit {
+                        t: hits.t[i],
+                        surface: hits.surface[i],
+                        cell,
+                    },
+                );
             }
         }
     }
@@ -327,9 +310,6 @@ impl<T: Voxel> KdTree<T> {
                         self.dims,
                         cell,
                         &p,
-                        rays,
-                        t0,
-                        t1,
                         active,
                         isos,
                         intersector,
