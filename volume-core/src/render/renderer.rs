@@ -249,7 +249,11 @@ struct RayState {
     done: bool,
 }
 
-/// Per-thread buffers, reused from tile to tile.
+/// Per-thread buffers, reused from tile to tile. `states` and the round's packet (`active`,
+/// `rays`, `t_min`, `t_max`, `hits`) hold at most one entry per sample of a tile: they are
+/// sized to [`SLOTS`] once and written by index with the counts kept in locals (a `push`
+/// per field and sample, each reloading and storing the length, was the hottest code of a
+/// frame of misses in `perf`).
 #[derive(Default)]
 struct Scratch {
     states: Vec<RayState>,
@@ -321,6 +325,34 @@ struct Band<'a> {
 }
 
 /// `(dx, dy)` of the `TILE × TILE` samples of a tile in Morton order.
+/// Samples per tile: the most states, and the most rays in one round, a tile has.
+const SLOTS: usize = (TILE * TILE) as usize;
+
+impl Scratch {
+    /// Sizes the per-sample buffers to [`SLOTS`] (once per thread; a no-op afterwards).
+    fn fit(&mut self) {
+        if self.states.len() < SLOTS {
+            let state = RayState {
+                iv: 0,
+                iv_end: 0,
+                t_from: 0.0,
+                color: Vec3::ZERO,
+                transmittance: 1.0,
+                depth: f32::INFINITY,
+                layers: 0,
+                pos: 0,
+                done: true,
+            };
+            self.states.resize(SLOTS, state);
+            self.active.resize(SLOTS, 0);
+            self.rays.resize(SLOTS, Ray::new(Vec3::ZERO, Vec3::ONE));
+            self.t_min.resize(SLOTS, 0.0);
+            self.t_max.resize(SLOTS, 0.0);
+            self.hits.resize(SLOTS, None);
+        }
+    }
+}
+
 fn morton_order() -> Vec<[u32; 2]> {
     let mut v: Vec<[u32; 2]> = (0..TILE * TILE)
         .map(|m| {
@@ -497,12 +529,9 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             ctx.raygen
                 .rays_row_in(&columns, *row, &ctx.bounds, out, &mut lo[dy], &mut hi[dy]);
     }
-    sc.states.clear();
+    sc.fit();
     sc.intervals.clear();
-    sc.active.clear();
-    sc.rays.clear();
-    sc.t_min.clear();
-    sc.t_max.clear();
+    let mut n_states = 0usize;
     tally.rays.primary += u64::from(n_x * n_y);
     let no_clips = settings.clips.is_empty();
     let traced = !ctx.isovalues.is_empty();
@@ -536,11 +565,13 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             }
             let iv_end = sc.intervals.len() as u32;
             let t_from = sc.intervals[iv as usize].lo;
-            sc.active.push(sc.states.len() as u32);
-            sc.rays.push(ray);
-            sc.t_min.push(t_from);
-            sc.t_max.push(sc.intervals[iv as usize].hi);
-            sc.states.push(RayState {
+            let k = n_states;
+            sc.active[k] = k as u32;
+            sc.rays[k] = ray;
+            sc.t_min[k] = t_from;
+            sc.t_max[k] = sc.intervals[iv as usize].hi;
+            n_states += 1;
+            sc.states[k] = RayState {
                 iv,
                 iv_end,
                 t_from,
@@ -550,30 +581,29 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 layers: 0,
                 pos: pos as u8,
                 done: false,
-            });
+            };
         }
     }
 
     // 2. Rounds: trace every active ray's current segment together.
+    let mut n = n_states;
     let mut first_round = true;
     loop {
         if !first_round {
-            next_round(sc, &mut tally.rays);
+            n = next_round(sc, n_states, &mut tally.rays);
         }
         first_round = false;
-        if sc.active.is_empty() {
+        if n == 0 {
             break;
         }
-        let n = sc.active.len();
-        sc.hits.clear();
-        sc.hits.resize(n, None);
+        sc.hits[..n].fill(None);
         if settings.packets {
             scene.first_hit_packet_prepared(
-                &sc.rays,
-                &sc.t_min,
-                &sc.t_max,
+                &sc.rays[..n],
+                &sc.t_min[..n],
+                &sc.t_max[..n],
                 &ctx.isos,
-                &mut sc.hits,
+                &mut sc.hits[..n],
                 &mut tally.stats,
             );
         } else {
@@ -738,7 +768,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         }
         band.depth[row + x0..row + x1].fill(f32::INFINITY);
     }
-    for st in &sc.states {
+    for st in &sc.states[..n_states] {
         if st.layers == 0 {
             continue;
         }
@@ -767,14 +797,12 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     }
 }
 
-/// Builds the next round's packet: every ray not done, at its current `t_from`, moved on to
-/// the next kept interval when `t_from` is past the current one's end.
-fn next_round(sc: &mut Scratch, rays: &mut RayCounts) {
-    sc.active.clear();
-    sc.rays.clear();
-    sc.t_min.clear();
-    sc.t_max.clear();
-    for (idx, st) in sc.states.iter_mut().enumerate() {
+/// Builds the next round's packet from the tile's first `n_states` states and returns its
+/// size: every ray not done, at its current `t_from`, moved on to the next kept interval
+/// when `t_from` is past the current one's end.
+fn next_round(sc: &mut Scratch, n_states: usize, rays: &mut RayCounts) -> usize {
+    let mut n = 0;
+    for (idx, st) in sc.states[..n_states].iter_mut().enumerate() {
         if st.done {
             continue;
         }
@@ -797,11 +825,13 @@ fn next_round(sc: &mut Scratch, rays: &mut RayCounts) {
         if st.layers > 0 {
             rays.transparency += 1;
         }
-        sc.active.push(idx as u32);
-        sc.rays.push(sc.tile_rays[usize::from(st.pos)]);
-        sc.t_min.push(st.t_from);
-        sc.t_max.push(sc.intervals[st.iv as usize].hi);
+        sc.active[n] = idx as u32;
+        sc.rays[n] = sc.tile_rays[usize::from(st.pos)];
+        sc.t_min[n] = st.t_from;
+        sc.t_max[n] = sc.intervals[st.iv as usize].hi;
+        n += 1;
     }
+    n
 }
 
 #[cfg(test)]
