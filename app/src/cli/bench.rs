@@ -334,19 +334,12 @@ fn time_frames(
 ) -> anyhow::Result<ConfigReport> {
     let progress = Progress::bar(frames as u64 + 2, format!("bench {name}"));
     let mut frame = Frame::default();
-    let drawn = |ok: bool| {
-        if ok {
-            Ok(())
-        } else {
-            Err(anyhow::anyhow!("cancelled"))
-        }
-    };
-    drawn(draw(settings, &mut frame))?;
+    anyhow::ensure!(draw(settings, &mut frame), "cancelled");
     let primary_rays = frame.rays.primary;
     progress.inc(1);
     let mut frame_ms = Vec::with_capacity(frames);
     for _ in 0..frames {
-        drawn(draw(settings, &mut frame))?;
+        anyhow::ensure!(draw(settings, &mut frame), "cancelled");
         frame_ms.push(frame.elapsed.as_secs_f64() * 1e3);
         progress.inc(1);
     }
@@ -354,7 +347,7 @@ fn time_frames(
         collect_stats: true,
         ..settings.clone()
     };
-    drawn(draw(&stats_settings, &mut frame))?;
+    anyhow::ensure!(draw(&stats_settings, &mut frame), "cancelled");
     let s = &frame;
     progress.inc(1);
     let c = s.counts;

@@ -620,7 +620,8 @@ impl CubicF64 {
 /// (refined by Newton steps) split the segment into monotone pieces; the first piece whose
 /// ends differ in sign holds the first crossing, which `refine(k, s0, f(s0), s1)` locates;
 /// an extremum with `|f| ≤ tol` (a rigorous rounding bound) is a touching double or triple
-/// root and counts as a hit.
+/// root and counts as a hit. A cubic certified monotone on `[0, 1]` (`monotone_on_unit`) is
+/// one piece: no extrema to find.
 pub(crate) fn first_root_f64(
     k: &[f64; 4],
     tol: f64,

@@ -324,12 +324,11 @@ struct Band<'a> {
     depth: &'a mut [f32],
 }
 
-/// `(dx, dy)` of the `TILE × TILE` samples of a tile in Morton order.
 /// Samples per tile: the most states, and the most rays in one round, a tile has.
 const SLOTS: usize = (TILE * TILE) as usize;
 
 impl Scratch {
-    /// Sizes the per-sample buffers to [`SLOTS`] (once per thread; a no-op afterwards).
+    /// Sizes the per-sample buffers to [`SLOTS`] (once per scratch; a no-op afterwards).
     fn fit(&mut self) {
         if self.states.len() < SLOTS {
             let state = RayState {
@@ -353,6 +352,7 @@ impl Scratch {
     }
 }
 
+/// `(dx, dy)` of the `TILE × TILE` samples of a tile in Morton order.
 fn morton_order() -> Vec<[u32; 2]> {
     let mut v: Vec<[u32; 2]> = (0..TILE * TILE)
         .map(|m| {
