@@ -87,8 +87,9 @@ pub struct Args {
     /// Skip the (slow) DDA baseline (volumes).
     #[arg(long)]
     pub skip_dda: bool,
-    /// Skip the one-ray-at-a-time kd-tree configuration (volumes): time only the packets the
-    /// renderer uses (e.g. for profiles and peer comparisons).
+    /// Skip the baselines: the one-ray-at-a-time kd-tree configuration (volumes), the 2×2
+    /// packets and single rays (meshes). Times only the packets the renderer uses (e.g. for
+    /// profiles and peer comparisons).
     #[arg(long)]
     pub skip_single: bool,
     /// Cast shadow rays towards a key light (above, left and behind the camera, as `render
@@ -692,10 +693,10 @@ fn measure_tet(args: &Args, mut s: Setup) -> anyhow::Result<BenchReport> {
         default_rays,
         true,
     )?);
-    if side != 2 {
+    if side != 2 && !args.skip_single {
         configs.push(timed(tet, "bvh-packet-2x2".into(), 4, true)?);
     }
-    if side != 1 {
+    if side != 1 && !args.skip_single {
         configs.push(timed(tet, "bvh-single".into(), 1, false)?);
     }
     let other_builder = if args.compare_bvh {
