@@ -25,7 +25,7 @@ pub fn normal_at<T: Voxel>(
     uvw: Vec3,
 ) -> Option<Vec3> {
     if let Some(g) = gradient_interior_f32(frame, voxels, dims, cell, uvw) {
-        return frame.world_normal(g.as_dvec3());
+        return frame.world_normal_f32(g);
     }
     normal_general(frame, voxels, dims, cell, uvw)
 }

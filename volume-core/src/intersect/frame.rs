@@ -10,7 +10,7 @@
 //! renormalised). The per-axis sample tables [`TraversalFrame::pos`] are the kd-tree's split
 //! positions (thesis seed 004 §7.3.1); a spacing edit rebuilds only them (§7.6).
 
-use glam::{DAffine3, DMat3, DVec3, Vec3};
+use glam::{DAffine3, DMat3, DVec3, Mat3, Vec3};
 
 use crate::math::{Aabb, Ray};
 use crate::volume::{AxisCoords, Grid};
@@ -46,6 +46,9 @@ pub struct TraversalFrame {
     /// Maps a gradient in traversal units to a world-space gradient
     /// (`M⁻ᵀ · diag(units_per_grid)`, with `M` the linear part of `world_from_grid`).
     world_gradient_from_local: DMat3,
+    /// The same in `f32`, for the shading normals of the common case
+    /// ([`TraversalFrame::world_normal_f32`]).
+    world_gradient_from_local_f32: Mat3,
     world_bounds: Aabb,
     /// The far corner of the volume in traversal units (`pos[a][cells[a]]`; zero when empty).
     upper: Vec3,
@@ -104,6 +107,7 @@ impl TraversalFrame {
             pos,
             cells,
             world_gradient_from_local,
+            world_gradient_from_local_f32: world_gradient_from_local.as_mat3(),
             world_bounds,
             upper,
         }
@@ -315,6 +319,19 @@ impl TraversalFrame {
         (n != DVec3::ZERO && n.is_finite()).then(|| n.as_vec3())
     }
 
+    /// [`TraversalFrame::world_normal`] of an `f32` gradient, in `f32` (a shading normal
+    /// needs no more); the `f64` path only when `f32` overflows, underflows or has a
+    /// non-finite matrix (extreme spacings or values).
+    #[inline]
+    pub fn world_normal_f32(&self, grad_local: Vec3) -> Option<Vec3> {
+        let n = (self.world_gradient_from_local_f32 * grad_local).normalize_or_zero();
+        if n != Vec3::ZERO && n.is_finite() {
+            Some(n)
+        } else {
+            self.world_normal(grad_local.as_dvec3())
+        }
+    }
+
     /// The cell along axis `a` that contains traversal coordinate `x` (clamped to the grid).
     pub fn locate(&self, a: usize, x: f32) -> usize {
         let n = self.cells[a];
@@ -394,6 +411,33 @@ mod tests {
         let n = f.world_normal(DVec3::new(2.0, 0.0, 0.0)).unwrap();
         assert!((n - Vec3::Y).length() < 1e-6);
         assert!(f.world_normal(DVec3::ZERO).is_none());
+    }
+
+    /// The `f32` shading normal agrees with the `f64` one to a few ulps on anisotropic,
+    /// rotated frames, and gradients that overflow or underflow `f32` after the transform
+    /// still get the `f64` normal.
+    #[test]
+    fn f32_world_normal_matches_the_f64_one_and_falls_back_at_extremes() {
+        let rot = DAffine3::from_rotation_z(0.7) * DAffine3::from_rotation_x(-0.3);
+        let axes = Grid::uniform([4, 4, 4], [0.0; 3], [0.3, 2.5, 1.1])
+            .unwrap()
+            .axes()
+            .clone();
+        let f = TraversalFrame::new(&Grid::new([4, 4, 4], axes, Some(rot)).unwrap());
+        let mut rng = crate::math::rng::Rng::new(7);
+        for _ in 0..1000 {
+            let g = rng.vec3(-50.0, 50.0);
+            let (a, b) = (f.world_normal_f32(g), f.world_normal(g.as_dvec3()));
+            assert_eq!(a.is_some(), b.is_some(), "{g}");
+            if let (Some(a), Some(b)) = (a, b) {
+                assert!((a - b).length() < 1e-6, "{g}: {a} vs {b}");
+            }
+        }
+        for g in [Vec3::new(3e37, -1e38, 2e38), Vec3::new(1e-40, 0.0, -2e-41)] {
+            let want = f.world_normal(g.as_dvec3()).unwrap();
+            assert_eq!(f.world_normal_f32(g), Some(want), "{g}");
+        }
+        assert!(f.world_normal_f32(Vec3::ZERO).is_none());
     }
 
     #[test]
