@@ -40,12 +40,15 @@ pub enum TetNormals {
 /// A tetrahedral mesh ready for isosurface ray tracing (module docs).
 #[derive(Debug, Clone)]
 pub struct TetScene {
-    /// Point position in `xyz`, the selected field's value in `w`.
+    /// Point position in `xyz`, the selected field's value in `w`, numbered in order of first
+    /// use by the leaf-ordered tets (so a leaf's vertices share cache lines).
     pub(crate) verts: Vec<Vec4>,
-    /// Tets in leaf order.
+    /// Tets in leaf order, indexing `verts`.
     pub(crate) tets: Vec<[u32; 4]>,
     /// `order[leaf_position] = index in the input tet list`.
     order: Vec<u32>,
+    /// `point_order[vertex] = index in the input point list`.
+    point_order: Vec<u32>,
     pub(crate) bvh: TetBvh,
     normals: TetNormals,
     /// Rows of `M` per tet (leaf order), only for smooth normals.
@@ -115,6 +118,7 @@ impl TetScene {
         let mut tets = tets;
         let (bvh, order) = TetBvh::build(&verts, &mut tets, options);
         let mut scene = Self {
+            point_order: (0..verts.len() as u32).collect(),
             verts,
             tets,
             order,
@@ -124,8 +128,41 @@ impl TetScene {
             packet: MAX_PACKET,
             bounds: Aabb::EMPTY,
         };
+        scene.renumber_points();
         scene.update_bounds();
         Ok(scene)
+    }
+
+    /// Renumbers the points in order of first use by the tets (leaf order; unused points
+    /// last, in their order): the traversal's vertex gathers of one leaf, and of the leaves
+    /// after it, then fall on few cache lines instead of all over the point array. Keeps
+    /// `point_order` and the BVH (whose bounds do not depend on numbering) in step.
+    fn renumber_points(&mut self) {
+        const UNSEEN: u32 = u32::MAX;
+        let mut new_of_old = vec![UNSEEN; self.verts.len()];
+        let mut next = 0u32;
+        for t in &mut self.tets {
+            for i in t.iter_mut() {
+                let n = &mut new_of_old[*i as usize];
+                if *n == UNSEEN {
+                    *n = next;
+                    next += 1;
+                }
+                *i = *n;
+            }
+        }
+        for n in new_of_old.iter_mut().filter(|n| **n == UNSEEN) {
+            *n = next;
+            next += 1;
+        }
+        let mut verts = vec![Vec4::ZERO; self.verts.len()];
+        let mut point_order = vec![0u32; self.verts.len()];
+        for (old, &new) in new_of_old.iter().enumerate() {
+            verts[new as usize] = self.verts[old];
+            point_order[new as usize] = self.point_order[old];
+        }
+        self.verts = verts;
+        self.point_order = point_order;
     }
 
     fn update_bounds(&mut self) {
@@ -140,6 +177,7 @@ impl TetScene {
         self.order = order.iter().map(|&i| self.order[i as usize]).collect();
         self.tets = tets;
         self.bvh = bvh;
+        self.renumber_points();
         self.update_bounds();
         self.update_normals();
     }
@@ -155,8 +193,8 @@ impl TetScene {
         }
         self.verts
             .par_iter_mut()
-            .zip(values)
-            .for_each(|(p, &v)| p.w = v);
+            .zip(&self.point_order)
+            .for_each(|(p, &i)| p.w = values[i as usize]);
         self.bvh.refit(&self.verts, &self.tets, true);
         self.update_normals();
         Ok(())
@@ -174,8 +212,11 @@ impl TetScene {
         check_points(points)?;
         self.verts
             .par_iter_mut()
-            .zip(points)
-            .for_each(|(p, q)| *p = Vec4::new(q[0], q[1], q[2], p.w));
+            .zip(&self.point_order)
+            .for_each(|(p, &i)| {
+                let q = points[i as usize];
+                *p = Vec4::new(q[0], q[1], q[2], p.w);
+            });
         self.bvh.refit(&self.verts, &self.tets, false);
         self.update_bounds();
         self.update_normals();
@@ -235,6 +276,13 @@ impl TetScene {
             if std::mem::replace(&mut seen[o as usize], true) {
                 return Err(format!("input tet {o} appears twice in the leaf order"));
             }
+        }
+        let mut seen = vec![false; self.verts.len()];
+        for &o in &self.point_order {
+            if seen.get(o as usize).is_none_or(|&s| s) {
+                return Err(format!("input point {o} is not numbered once"));
+            }
+            seen[o as usize] = true;
         }
         Ok(())
     }
@@ -407,9 +455,13 @@ impl TetScene {
         best
     }
 
-    /// Input data of the scene: point positions.
+    /// Input data of the scene: point positions, in input order.
     pub fn points(&self) -> Vec<[f32; 3]> {
-        self.verts.iter().map(|v| v.truncate().to_array()).collect()
+        let mut out = vec![[0.0; 3]; self.verts.len()];
+        for (v, &i) in self.verts.iter().zip(&self.point_order) {
+            out[i as usize] = v.truncate().to_array();
+        }
+        out
     }
 }
 
@@ -458,7 +510,9 @@ impl HitField for TetField<'_> {
             return f32::NAN;
         }
         let value: f64 = (0..4)
-            .map(|c| w[c] * f64::from(self.values[ids[c] as usize]))
+            .map(|c| {
+                w[c] * f64::from(self.values[self.scene.point_order[ids[c] as usize] as usize])
+            })
             .sum();
         (value / sum) as f32
     }
@@ -581,6 +635,7 @@ impl IsoScene for TetScene {
 mod tests {
     use super::*;
     use crate::render::NoStats;
+    use crate::tet::BvhBuilder;
     use crate::tet::{PointField, lattice_tets};
 
     /// A jittered `n³`-point grid, 6 tets per cell, with a bumpy distance field.
@@ -601,6 +656,56 @@ mod tests {
         let tets = lattice_tets(n, id);
         let mesh = TetMesh::new(points, tets, vec![PointField::new("f", values)]).unwrap();
         TetScene::new(&mesh, "f", BvhOptions::default()).unwrap()
+    }
+
+    /// Points are renumbered by first use in leaf order (unused ones last), and everything
+    /// that takes or gives points in input order still does: `points()`, the tets' corners
+    /// (through `input_tet`), and a rebuild.
+    #[test]
+    fn renumbered_points_keep_the_input_order_outside() {
+        let n = 5;
+        let mut rng = crate::math::rng::Rng::new(9);
+        let id = |i: usize, j: usize, k: usize| (i + n * (j + n * k)) as u32;
+        let mut points: Vec<[f32; 3]> = (0..n * n * n)
+            .map(|m| [(m % n) as f32, ((m / n) % n) as f32, (m / (n * n)) as f32])
+            .collect();
+        // Two points no tet uses.
+        points.push([0.5, 0.5, 9.0]);
+        points.insert(0, [0.5, 9.0, 0.5]);
+        let tets: Vec<[u32; 4]> = lattice_tets(n, id)
+            .into_iter()
+            .map(|t| t.map(|i| i + 1))
+            .collect();
+        let values: Vec<f32> = (0..points.len()).map(|_| rng.unit_f32()).collect();
+        let mut scene =
+            TetScene::from_parts(&points, tets.clone(), &values, BvhOptions::default()).unwrap();
+        for _ in 0..2 {
+            scene.validate().unwrap();
+            assert_eq!(scene.points(), points);
+            let mut next = 0;
+            for (leaf, t) in scene.tets.iter().enumerate() {
+                let input = tets[scene.input_tet(leaf as u32) as usize];
+                for (&v, &i) in t.iter().zip(&input) {
+                    assert_eq!(
+                        scene.verts[v as usize].truncate().to_array(),
+                        points[i as usize]
+                    );
+                    assert_eq!(scene.verts[v as usize].w, values[i as usize]);
+                    // First use in leaf order takes the next number.
+                    assert!(v <= next, "tet {leaf}: vertex {v} before {next}");
+                    next = next.max(v + 1);
+                }
+            }
+            assert_eq!(
+                next as usize,
+                points.len() - 2,
+                "the unused points come last"
+            );
+            scene.rebuild(BvhOptions {
+                builder: BvhBuilder::Sah,
+                leaf_size: 3,
+            });
+        }
     }
 
     /// `first_hit_packet` (faceted normals taken from the traversal's polygons) equals raw
