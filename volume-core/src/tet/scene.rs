@@ -10,6 +10,9 @@
 //! - Time steps: [`TetScene::refit_scalars`] (values only: only the isoranges are refit)
 //!   and [`TetScene::refit_positions`] (§8.5.2, parallel refit); a per-step BVH is just one
 //!   `TetScene` per step (§8.5.1).
+//! - Layout: tets in BVH leaf order and points renumbered by their first use there, so a
+//!   leaf's vertex gathers share cache lines; everything that takes or gives points (time
+//!   steps, [`TetScene::points`], colouring fields) keeps the input order.
 //! - [`TetScene::brute_force_first_hit`] is the `f64` twin: every tet's isopolygon against
 //!   the ray, no acceleration structure.
 //!
