@@ -249,6 +249,23 @@ struct RayState {
     done: bool,
 }
 
+impl RayState {
+    /// A sample that starts at `t_from` in kept intervals `iv..iv_end`, nothing composited.
+    fn start(iv: u32, iv_end: u32, t_from: f32, pos: u8) -> Self {
+        Self {
+            iv,
+            iv_end,
+            t_from,
+            color: Vec3::ZERO,
+            transmittance: 1.0,
+            depth: f32::INFINITY,
+            layers: 0,
+            pos,
+            done: false,
+        }
+    }
+}
+
 /// Per-thread buffers, reused from tile to tile. `states` and the round's packet (`active`,
 /// `rays`, `t_min`, `t_max`, `hits`) hold at most one entry per sample of a tile: they are
 /// sized to [`SLOTS`] once and written by index with the counts kept in locals (a `push`
@@ -332,15 +349,8 @@ impl Scratch {
     fn fit(&mut self) {
         if self.states.len() < SLOTS {
             let state = RayState {
-                iv: 0,
-                iv_end: 0,
-                t_from: 0.0,
-                color: Vec3::ZERO,
-                transmittance: 1.0,
-                depth: f32::INFINITY,
-                layers: 0,
-                pos: 0,
                 done: true,
+                ..RayState::start(0, 0, 0.0, 0)
             };
             self.states.resize(SLOTS, state);
             self.active.resize(SLOTS, 0);
@@ -571,17 +581,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             sc.t_min[k] = t_from;
             sc.t_max[k] = sc.intervals[iv as usize].hi;
             n_states += 1;
-            sc.states[k] = RayState {
-                iv,
-                iv_end,
-                t_from,
-                color: Vec3::ZERO,
-                transmittance: 1.0,
-                depth: f32::INFINITY,
-                layers: 0,
-                pos: pos as u8,
-                done: false,
-            };
+            sc.states[k] = RayState::start(iv, iv_end, t_from, pos as u8);
         }
     }
 

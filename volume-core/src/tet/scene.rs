@@ -274,18 +274,13 @@ impl TetScene {
     /// Checks the BVH invariants against the current data.
     pub fn validate(&self) -> Result<(), String> {
         self.bvh.validate(&self.verts, &self.tets)?;
-        let mut seen = vec![false; self.order.len()];
-        for &o in &self.order {
-            if std::mem::replace(&mut seen[o as usize], true) {
-                return Err(format!("input tet {o} appears twice in the leaf order"));
-            }
+        if let Some(o) = not_a_permutation(&self.order) {
+            return Err(format!(
+                "input tet {o} is not in the leaf order exactly once"
+            ));
         }
-        let mut seen = vec![false; self.verts.len()];
-        for &o in &self.point_order {
-            if seen.get(o as usize).is_none_or(|&s| s) {
-                return Err(format!("input point {o} is not numbered once"));
-            }
-            seen[o as usize] = true;
+        if let Some(o) = not_a_permutation(&self.point_order) {
+            return Err(format!("input point {o} is not numbered exactly once"));
         }
         Ok(())
     }
@@ -519,6 +514,16 @@ impl HitField for TetField<'_> {
             .sum();
         (value / sum) as f32
     }
+}
+
+/// The first entry of `order` that is out of range or repeated, if `order` is not a
+/// permutation of `0..order.len()`.
+fn not_a_permutation(order: &[u32]) -> Option<u32> {
+    let mut seen = vec![false; order.len()];
+    order.iter().copied().find(|&o| {
+        seen.get_mut(o as usize)
+            .is_none_or(|s| std::mem::replace(s, true))
+    })
 }
 
 /// Gradient of the linear field over a tet and its |volume| (zero weight when degenerate
