@@ -731,10 +731,10 @@ const METHOD_NOTES: &str = "\
   (corner differences, segment ends, coefficients, evaluation); every other segment is
   decided by the reference's own f64 procedure on the exact segment (the derivative's roots
   split it into monotone pieces; the first piece whose ends differ in sign holds the first
-  crossing; a touch counts within the reference's rounding bound), then refined by f64
-  Illinois steps instead of bisection. So it finds exactly the reference's crossings:
-  0 missed, 0 false and 0 far hits on every dataset, at any resolution; |Δt| is the
-  refinement's residue. Earlier versions decided in f32 with a touching band of
+  crossing; a touch counts within the reference's rounding bound), then refined by
+  safeguarded f64 Newton steps instead of bisection. So it finds exactly the reference's
+  crossings: 0 missed, 0 false and 0 far hits on every dataset, at any resolution; |Δt| is
+  the refinement's residue. Earlier versions decided in f32 with a touching band of
   64·ε·max|g|, which at 1024² turned a few near misses per million rays into hits
   (regression tests in `volume_core::intersect::accuracy`).
 - **schwarze**: Cardano's formula in f32. Exact in exact arithmetic, but cancellation for

