@@ -903,7 +903,10 @@ mod tests {
                 );
                 continue;
             };
-            assert!((got - truth).abs() <= s_tol, "{k:?} {s_tol}: {got} vs {truth}");
+            assert!(
+                (got - truth).abs() <= s_tol,
+                "{k:?} {s_tol}: {got} vs {truth}"
+            );
             checked += 1;
         }
         assert!(checked > 5000, "{checked}");

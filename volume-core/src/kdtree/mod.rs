@@ -517,7 +517,15 @@ impl Children {
         stack: &mut [Entry<L>],
         sp: &mut usize,
     ) -> Option<[u32; 3]> {
-        let push = |far, t_near, t_far| {
+        let (next, push) = take_step(
+            step,
+            self.left,
+            self.right,
+            self.left_live,
+            self.right_live,
+            t_far,
+        );
+        if let Some((far, t_near, t_far)) = push {
             stack[*sp] = Entry {
                 node: far,
                 level: level as u32,
@@ -525,16 +533,8 @@ impl Children {
                 t_far,
             };
             *sp += 1;
-        };
-        take_step(
-            step,
-            self.left,
-            self.right,
-            self.left_live,
-            self.right_live,
-            t_far,
-            push,
-        )
+        }
+        next
     }
 }
 

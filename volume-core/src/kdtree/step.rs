@@ -77,9 +77,11 @@ pub(crate) fn ray_step(
 }
 
 /// Applies `step` to the children `left` and `right` (entered only if live): returns the
-/// child to descend into (`None`: pop the stack) and, when both are entered, first calls
-/// `push(far, far_t_near, t_far)` for a live far child, then narrows `t_far` to the near
-/// child's interval.
+/// child to descend into (`None`: pop the stack) and, when both are entered and the far
+/// child is live, the far child with its interval `(far, far_t_near, t_far)` for the caller
+/// to push; `t_far` is then narrowed to the near child's interval. The push is returned,
+/// not made through a closure: a pushing closure of 16-ray lanes was not inlined, and its
+/// copies of the lanes through memory stalled store forwarding (6 % of the MNI frame).
 #[inline(always)]
 pub(crate) fn take_step<N: Copy, T: Copy>(
     step: Step<T>,
@@ -88,28 +90,25 @@ pub(crate) fn take_step<N: Copy, T: Copy>(
     left_live: bool,
     right_live: bool,
     t_far: &mut T,
-    push: impl FnOnce(N, T, T),
-) -> Option<N> {
+) -> (Option<N>, Option<(N, T, T)>) {
     let (near, far, near_live, far_live) = if step.near_is_left {
         (left, right, left_live, right_live)
     } else {
         (right, left, right_live, left_live)
     };
     match step.visit {
-        Visit::Near => near_live.then_some(near),
-        Visit::Far => far_live.then_some(far),
+        Visit::Near => (near_live.then_some(near), None),
+        Visit::Far => (far_live.then_some(far), None),
         Visit::Both {
             near_t_far,
             far_t_near,
         } => {
-            if far_live {
-                push(far, far_t_near, *t_far);
-            }
+            let push = far_live.then_some((far, far_t_near, *t_far));
             if !near_live {
-                return None;
+                return (None, push);
             }
             *t_far = near_t_far;
-            Some(near)
+            (Some(near), push)
         }
     }
 }

@@ -1047,20 +1047,8 @@ impl<T: Voxel> OocScene<T> {
                 level += 1;
                 let step = ray_step(ray.origin[a], ray.dir[a], ray.inv_dir[a], ns.split, ta, tb);
                 // Children as `false` (left) / `true` (right): no node tuples through memory.
-                // The left child is always real; culling happens when a node is entered. The
-                // far child is noted, then pushed here (a pushing closure was not inlined).
-                let mut far = None;
-                let next = take_step(
-                    step,
-                    false,
-                    true,
-                    true,
-                    ns.right_real,
-                    &mut tb,
-                    |f, n, t| {
-                        far = Some((f, n, t));
-                    },
-                );
+                // The left child is always real; culling happens when a node is entered.
+                let (next, far) = take_step(step, false, true, true, ns.right_real, &mut tb);
                 if let Some((f, t_near, t_far)) = far {
                     let (node, h) = child_of(left, u, h, f);
                     stack[sp] = Entry {
@@ -1215,18 +1203,7 @@ impl<T: Voxel> OocScene<T> {
                     near_is_left: p.dir_pos[a],
                     visit,
                 };
-                let mut far = None;
-                let next = take_step(
-                    step,
-                    false,
-                    true,
-                    true,
-                    ns.right_real,
-                    &mut tf,
-                    |f, n, t| {
-                        far = Some((f, n, t));
-                    },
-                );
+                let (next, far) = take_step(step, false, true, true, ns.right_real, &mut tf);
                 if let Some((f, t_near, t_far)) = far {
                     let (node, h) = child_of(left, u, h, f);
                     stack[sp] = Entry {
