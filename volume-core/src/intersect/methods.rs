@@ -403,7 +403,7 @@ fn refine_newton_f64(k: &[f64; 4], s0: f64, f0: f64, s1: f64, s_tol: f64) -> f64
             (hi, f_hi) = (s, fs);
         }
         let mut step = -fs / ((d[0] * s + d[1]) * s + d[2]);
-        if !(step.abs() <= 0.5 * step_older) {
+        if step.is_nan() || step.abs() > 0.5 * step_older {
             // Too slow (or no finite step): bisect.
             step = 0.5 * (lo + hi) - s;
         } else if step.abs() < half_tol {
