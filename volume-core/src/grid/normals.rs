@@ -82,11 +82,21 @@ fn gradient_interior_f32<T: Voxel>(
         let r: &[T; 2] = voxels[o..o + 2].try_into().expect("2 samples");
         r.map(Voxel::to_f32)
     };
+    // Written out (not `[0, 1].map`, whose closures were left as calls, `perf`).
     // xr[z][y][x + 1]
-    let xr = [0, 1].map(|z| [0, 1].map(|y| row4(base - 1 + y * sy + z * sz)));
+    let xr = [
+        [row4(base - 1), row4(base - 1 + sy)],
+        [row4(base - 1 + sz), row4(base - 1 + sy + sz)],
+    ];
     // yr[z][0 = y −1, 1 = y 2][x], zr[y][0 = z −1, 1 = z 2][x]
-    let yr = [0, 1].map(|z| [row2(base - sy + z * sz), row2(base + 2 * sy + z * sz)]);
-    let zr = [0, 1].map(|y| [row2(base + y * sy - sz), row2(base + y * sy + 2 * sz)]);
+    let yr = [
+        [row2(base - sy), row2(base + 2 * sy)],
+        [row2(base - sy + sz), row2(base + 2 * sy + sz)],
+    ];
+    let zr = [
+        [row2(base - sz), row2(base + 2 * sz)],
+        [row2(base + sy - sz), row2(base + sy + 2 * sz)],
+    ];
     // Value at (x, y, z) of the cell's own 2×2×2 corners.
     let v = |x: usize, y: usize, z: usize| xr[z][y][x + 1];
     // Inverse central-difference widths per axis for the cell's two sample planes.

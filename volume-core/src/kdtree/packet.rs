@@ -140,10 +140,12 @@ impl PacketRays {
         t_near[..n].copy_from_slice(&t0[..n]);
         t_far[..n].copy_from_slice(&t1[..n]);
         let (t_near, t_far) = (lanes(&t_near), lanes(&t_far));
+        // Written out: `org.map(|v| v[h])` inside `from_fn` was left as calls (`perf`).
+        let half = |x: &[Lanes; 3], h: usize| [x[0][h], x[1][h], x[2][h]];
         let leaf = std::array::from_fn(|h| RaysX8 {
-            origin: org.map(|v| v[h]),
-            dir: dir.map(|v| v[h]),
-            inv_dir: inv.map(|v| v[h]),
+            origin: half(&org, h),
+            dir: half(&dir, h),
+            inv_dir: half(&inv, h),
             dir_pos,
             t_lo: t_near[h],
             t_hi: t_far[h],
