@@ -274,6 +274,15 @@ impl TetScene {
     /// Checks the BVH invariants against the current data.
     pub fn validate(&self) -> Result<(), String> {
         self.bvh.validate(&self.verts, &self.tets)?;
+        if self.order.len() != self.tets.len() || self.point_order.len() != self.verts.len() {
+            return Err(format!(
+                "{} tets and {} points, but orders of {} and {}",
+                self.tets.len(),
+                self.verts.len(),
+                self.order.len(),
+                self.point_order.len()
+            ));
+        }
         if let Some(o) = not_a_permutation(&self.order) {
             return Err(format!(
                 "input tet {o} is not in the leaf order exactly once"
