@@ -79,6 +79,7 @@ fn compare_scene<T: Voxel>(
         )
         .unwrap();
         let b = scene.world_bounds();
+        let live = scene.live_bounds(&scene.prepare(isos));
         let frame = scene.frame();
         let isoset = IsoSet::<T>::new(isos);
         for _ in 0..rays {
@@ -117,6 +118,15 @@ fn compare_scene<T: Voxel>(
             if let Some(h) = hit {
                 assert!(h.normal.is_finite() && (h.normal.length() - 1.0).abs() < 1e-4);
             }
+            // Cut to the live bounds, as the renderer cuts its rays: the same hit.
+            let cut = live
+                .intersect(&ray, 0.0, f32::INFINITY)
+                .and_then(|(lo, hi)| scene.first_hit(&ray, lo, hi, isos, &mut NoStats));
+            assert_eq!(
+                cut.map(|h| (h.t, h.surface)),
+                hit.map(|h| (h.t, h.surface)),
+                "live bounds {live:?} of {b:?} changed the hit of {ray:?}"
+            );
         }
     }
     hits
@@ -409,6 +419,12 @@ fn sphere_distance_field_hits_within_bound() {
     )
     .unwrap();
     let bound = spacing.iter().map(|h| h * h).sum::<f64>() / (8.0 * (r - 1.0));
+    let live = scene.live_bounds(&scene.prepare(&[r as f32]));
+    let whole = scene.world_bounds();
+    assert!(
+        (0..3).all(|a| live.extent()[a] < 0.9 * whole.extent()[a]),
+        "a sphere of radius 8 in a box of 24: live {live:?} of {whole:?}"
+    );
     let mut rng = Rng::new(3);
     let cv = glam::DVec3::from(c);
     let mut stats = CountStats::default();
@@ -435,6 +451,12 @@ fn sphere_distance_field_hits_within_bound() {
         let hit = scene
             .first_hit(&ray, 0.0, f32::INFINITY, &[r as f32], &mut stats)
             .expect("ray aimed inside the sphere hits it");
+        // Far from the origin the live bounds' `f32` corners round by 0.06: still the hit.
+        let (lo, hi) = live
+            .intersect(&ray, 0.0, f32::INFINITY)
+            .expect("a ray that hits meets the live bounds");
+        let cut = scene.first_hit(&ray, lo, hi, &[r as f32], &mut NoStats);
+        assert_eq!(cut, Some(hit));
         let p = eye32 + ray.dir.as_dvec3() * f64::from(hit.t);
         let err = ((p - cv).length() - r).abs();
         // ulp(1e6) in f32 for the ray origin and 1e-5 relative in t.
@@ -579,4 +601,153 @@ fn packet_groups_with_mixed_signs_equal_single_rays() {
         }
     }
     assert!(hits > total / 2, "{hits} of {total}");
+}
+
+/// A blob in one corner of `dims` (distance to a point near the low corner, plus noise),
+/// with NaN voids sprinkled in when `T` is a float.
+fn corner_blob(dims: [usize; 3], rng: &mut Rng) -> Vec<f32> {
+    let c = [0, 1, 2].map(|a| dims[a] as f32 * 0.2);
+    let mut vox = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let p = [i as f32, j as f32, k as f32];
+                let d = (0..3).map(|a| (p[a] - c[a]).powi(2)).sum::<f32>().sqrt();
+                vox.push(if rng.below(50) == 0 {
+                    f32::NAN
+                } else {
+                    d + rng.range_f32(-0.3, 0.3)
+                });
+            }
+        }
+    }
+    vox
+}
+
+/// Brute force over every cell: the live box holds each cell whose corner range holds an
+/// isovalue, comes within a node of them, and is `None` when no cell is live.
+#[test]
+fn live_cell_box_holds_every_live_cell() {
+    let mut rng = Rng::new(21);
+    for (dims, unstored) in [([64, 40, 33], 2), ([17, 9, 30], 0), ([5, 70, 6], 3)] {
+        let vox = corner_blob(dims, &mut rng);
+        let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+        let frame = volume_core::intersect::TraversalFrame::new(&grid);
+        let tree = KdTree::build(
+            &vox,
+            dims,
+            &frame,
+            KdTreeConfig {
+                unstored_levels: unstored,
+            },
+        );
+        let cells = dims.map(|d| d - 1);
+        for isos in [vec![3.0f32], vec![2.5, 6.0], vec![1e6], vec![-1.0, 4.0]] {
+            let set = IsoSet::<f32>::new(&isos);
+            let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+            for k in 0..cells[2] {
+                for j in 0..cells[1] {
+                    for i in 0..cells[0] {
+                        let c = volume_core::intersect::cell_corners(&vox, dims, [i, j, k]);
+                        if corner_range(&c).is_some_and(|(a, b)| set.any_in(a, b)) {
+                            for (a, x) in [i, j, k].into_iter().enumerate() {
+                                lo[a] = lo[a].min(x);
+                                hi[a] = hi[a].max(x);
+                            }
+                        }
+                    }
+                }
+            }
+            let live = tree.live_cell_box(&set);
+            if lo[0] == usize::MAX {
+                assert_eq!(live, None, "no live cell for {isos:?}");
+                continue;
+            }
+            let [b_lo, b_hi] = live.expect("live cells exist");
+            for a in 0..3 {
+                assert!(
+                    b_lo[a] <= lo[a] && hi[a] <= b_hi[a],
+                    "{live:?} misses {lo:?}..{hi:?}"
+                );
+                assert!(b_hi[a] < cells[a], "{live:?} beyond the cells {cells:?}");
+                // Nodes of the scanned level span at most 8 cells on grids this small.
+                assert!(lo[a] - b_lo[a] < 8 && b_hi[a] - hi[a] < 8, "{live:?} loose");
+            }
+        }
+    }
+}
+
+/// Frames cut to the live bounds equal frames over the whole volume bit for bit, with a
+/// transparent surface over an opaque one, shadows and a clip box, and trace fewer rays.
+#[test]
+fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
+    use volume_core::render::{
+        Camera, ClipRegion, Keep, Light, LightKind, RenderSettings, Surface, WholeBounds, render,
+    };
+    let mut rng = Rng::new(5);
+    let dims = [48, 36, 40];
+    let grid = Grid::uniform(dims, [1e3, -20.0, 5.0], [0.8, 1.0, 1.2]).unwrap();
+    let vox: Vec<i16> = corner_blob(dims, &mut rng)
+        .into_iter()
+        .map(|v| {
+            if v.is_finite() {
+                (v * 10.0) as i16
+            } else {
+                600
+            }
+        })
+        .collect();
+    let scene = GridScene::new(
+        &grid,
+        VoxelBuffer::from_vec(vox),
+        Intersector::Exact,
+        KdTreeConfig::default(),
+    )
+    .unwrap();
+    let b = scene.world_bounds();
+    let mut transparent = Surface::new(60.0, [0.9, 0.5, 0.4]);
+    transparent.opacity = 0.4;
+    let mut settings = RenderSettings {
+        width: 96,
+        height: 72,
+        surfaces: vec![transparent, Surface::new(90.0, [0.8, 0.8, 0.7])],
+        shadows: true,
+        light: Light {
+            kind: LightKind::Directional {
+                dir: Vec3::new(-0.3, 0.5, 0.8),
+            },
+            ..Light::default()
+        },
+        collect_stats: true,
+        ..RenderSettings::default()
+    };
+    let go = std::sync::atomic::AtomicBool::new(false);
+    for (az, clip) in [(30.0, false), (200.0, true)] {
+        settings.clips = if clip {
+            // Cuts the blob through its centre.
+            vec![ClipRegion::Box {
+                min: b.min,
+                max: Vec3::new(b.min.x + 0.2 * b.extent().x, b.max.y, b.max.z),
+                keep: Keep::Outside,
+            }]
+        } else {
+            Vec::new()
+        };
+        let cam = Camera::orbit(&b, az, 25.0, 40.0);
+        let cut = render(&scene, &cam, &settings, &go).unwrap();
+        let whole = render(&WholeBounds(&scene), &cam, &settings, &go).unwrap();
+        assert_eq!(cut.rgba8, whole.rgba8);
+        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&cut.depth), bits(&whole.depth));
+        assert!(
+            cut.depth.iter().any(|d| d.is_finite()),
+            "the blob is in view"
+        );
+        assert!(
+            cut.counts.rays < whole.counts.rays,
+            "rays traced: {} cut, {} whole",
+            cut.counts.rays,
+            whole.counts.rays
+        );
+    }
 }

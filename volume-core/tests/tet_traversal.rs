@@ -798,3 +798,66 @@ fn renderer_depth_matches_brute_force() {
         assert!(hits > (w * h / 10) as usize, "{hits}");
     }
 }
+
+/// Frames cut to the BVH's live bounds equal frames over the whole mesh bit for bit (a
+/// transparent surface over an opaque one, shadows, both normal modes), agree with brute
+/// force, and trace fewer rays: the field is a blob in one corner of the mesh.
+#[test]
+fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
+    use std::sync::atomic::AtomicBool;
+    use volume_core::render::{
+        Camera, Light, LightKind, RenderSettings, Surface, WholeBounds, render,
+    };
+    let mut rng = Rng::new(29);
+    let corner = Vec3::new(2.0, 2.5, 2.0);
+    let mesh = grid_mesh(12, 0.25, &mut rng, |p, rng| {
+        (p - corner).length() + rng.range_f32(-0.05, 0.05)
+    });
+    let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+    let b = scene.world_bounds();
+    let live = scene.live_bounds(&scene.prepare(&[1.5, 2.2]));
+    assert!(
+        (0..3).all(|a| live.extent()[a] < 0.6 * b.extent()[a]),
+        "live {live:?} of {b:?}"
+    );
+    assert!(scene.live_bounds(&scene.prepare(&[1e6])).is_empty());
+    let cam = Camera::orbit(&b, 35.0, 25.0, 40.0);
+    let (w, h) = (64u32, 48u32);
+    let mut skin = Surface::new(2.2, [0.9, 0.5, 0.4]);
+    skin.opacity = 0.4;
+    let go = AtomicBool::new(false);
+    for normals in [TetNormals::Faceted, TetNormals::Smooth] {
+        scene.set_normals(normals);
+        let settings = RenderSettings {
+            width: w,
+            height: h,
+            surfaces: vec![skin.clone(), Surface::new(1.5, [0.8, 0.8, 0.7])],
+            shadows: true,
+            light: Light {
+                kind: LightKind::Directional {
+                    dir: Vec3::new(0.4, -0.5, 0.8),
+                },
+                ..Light::default()
+            },
+            collect_stats: true,
+            ..RenderSettings::default()
+        };
+        let cut = render(&scene, &cam, &settings, &go).unwrap();
+        let whole = render(&WholeBounds(&scene), &cam, &settings, &go).unwrap();
+        assert_eq!(cut.rgba8, whole.rgba8);
+        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&cut.depth), bits(&whole.depth));
+        assert!(cut.counts.rays < whole.counts.rays);
+        let mut hits = 0;
+        for j in 0..h {
+            for i in 0..w {
+                let ray = cam.primary_ray(i, j, w, h);
+                let depth = cut.depth[(j * w + i) as usize];
+                let got = depth.is_finite().then_some(depth);
+                hits += usize::from(got.is_some());
+                agrees(&scene, &ray, 0.0, f32::INFINITY, &[2.2, 1.5], got).unwrap();
+            }
+        }
+        assert!(hits > 20, "{hits} hits");
+    }
+}

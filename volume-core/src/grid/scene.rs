@@ -288,6 +288,15 @@ impl<T: Voxel> IsoScene for GridScene<T> {
         self.frame.world_bounds()
     }
 
+    /// The world box of [`KdTree::live_cell_box`], a cell wider on every side
+    /// ([`TraversalFrame::world_bounds_of_cells`]).
+    fn live_bounds(&self, isos: &IsoSet<T>) -> Aabb {
+        match self.tree.live_cell_box(isos) {
+            Some([lo, hi]) => self.frame.world_bounds_of_cells(lo, hi),
+            None => Aabb::EMPTY,
+        }
+    }
+
     #[inline]
     fn first_hit_prepared<S: Stats>(
         &self,
@@ -458,6 +467,12 @@ impl IsoScene for AnyGridScene {
 
     fn world_bounds(&self) -> Aabb {
         dispatch_grid_scene!(self, s => s.world_bounds())
+    }
+
+    fn live_bounds(&self, isos: &AnyIsoSet) -> Aabb {
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.live_bounds(i)
+        }; else isovalues_of_another_type())
     }
 
     #[inline]

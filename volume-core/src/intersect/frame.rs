@@ -38,6 +38,7 @@ impl LocalRay {
 #[derive(Debug, Clone)]
 pub struct TraversalFrame {
     grid_from_world: Option<DAffine3>,
+    world_from_grid: Option<DAffine3>,
     origin_grid: DVec3,
     units_per_grid: DVec3,
     /// Sample positions per axis in traversal units (`pos[a][0] == 0`).
@@ -102,6 +103,7 @@ impl TraversalFrame {
         };
         Self {
             grid_from_world: grid.world_from_grid().map(|w| w.inverse()),
+            world_from_grid: grid.world_from_grid(),
             origin_grid,
             units_per_grid,
             pos,
@@ -125,6 +127,42 @@ impl TraversalFrame {
 
     pub fn world_bounds(&self) -> Aabb {
         self.world_bounds
+    }
+
+    /// World bounds around the inclusive cell box `[lo, hi]`, one cell wider on every side
+    /// (kept inside [`TraversalFrame::world_bounds`]): a ray's clipped interval then starts
+    /// and ends at least a cell's width away from every cell of the box, far beyond the
+    /// rounding of the world slab test, so the cells' own slab tests decide as with the
+    /// whole volume's bounds. The whole grid gives the volume's bounds exactly.
+    pub fn world_bounds_of_cells(&self, lo: [usize; 3], hi: [usize; 3]) -> Aabb {
+        if self.is_empty() {
+            return Aabb::EMPTY;
+        }
+        let s_lo = [0, 1, 2].map(|a| lo[a].min(self.cells[a]).saturating_sub(1));
+        let s_hi = [0, 1, 2].map(|a| (hi[a] + 2).min(self.cells[a]));
+        if s_lo == [0; 3] && s_hi == self.cells {
+            return self.world_bounds;
+        }
+        let grid_at = |a: usize, s: usize| {
+            self.origin_grid[a] + f64::from(self.pos[a][s]) / self.units_per_grid[a]
+        };
+        let mut b = Aabb::EMPTY;
+        for c in 0..8 {
+            let p = DVec3::from(
+                [0, 1, 2].map(|a| grid_at(a, if c >> a & 1 == 0 { s_lo[a] } else { s_hi[a] })),
+            );
+            let w = self.world_from_grid.map_or(p, |m| m.transform_point3(p));
+            b = b.grow(w.as_vec3());
+        }
+        // The `f32` corners (far from the origin, an ulp can exceed a fine cell) and the
+        // `f32` sample positions of explicit axes round: a few ulps and a relative hair
+        // more, then the volume's own faces wherever the box reaches them.
+        let pad = b.min.abs().max(b.max.abs()) * (4.0 * f32::EPSILON)
+            + Vec3::splat(self.world_bounds.extent().max_element() * 1e-5);
+        Aabb::new(
+            (b.min - pad).max(self.world_bounds.min),
+            (b.max + pad).min(self.world_bounds.max),
+        )
     }
 
     /// The world ray in traversal units (f64 transform, then f32).

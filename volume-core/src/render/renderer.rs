@@ -12,8 +12,10 @@
 //! rays covers a compact 2×2, 4×2, 4×4, … block (good packets for 4- and 8-wide SIMD
 //! traversal and for frusta). Rays come from per-column and per-row camera terms computed
 //! once per tile (`RayGen::column`, `RayGen::row`), bit-identical to
-//! [`RayGen::ray_at`]; the same 8-wide pass cuts them to the volume bounds (bit-identical to
-//! [`Aabb::intersect`]). Only samples whose ray meets the bounds (and, when there are clip
+//! [`RayGen::ray_at`]; the same 8-wide pass cuts them to the scene's live bounds
+//! ([`IsoScene::live_bounds`]: for grids, the box of the kd-tree nodes that hold an isovalue,
+//! a cell wider; bit-identical to [`Aabb::intersect`]). Only samples whose ray meets them
+//! (and, when there are clip
 //! regions, keeps a clip interval, [`super::clip`]) get a per-ray state; the tile is painted
 //! with the background first and only those samples are composited over it. Then the tile runs
 //! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
@@ -218,6 +220,7 @@ struct Ctx<'a, I> {
     /// `isovalues` as the scene prepared them, once for the frame ([`IsoScene::prepare`]).
     isos: I,
     surface_of: Vec<usize>,
+    /// Where rays are traced: the scene's [`IsoScene::live_bounds`] for `isos`.
     bounds: Aabb,
     /// Minimum distance past a transparent hit (absolute part; a relative part is added).
     peel_eps: f32,
@@ -408,6 +411,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let (frame_w, frame_h) = (span(&tiles_x, width), span(&tiles_y, height));
     let (isovalues, surface_of) = settings.active_isovalues();
     let bounds = scene.world_bounds();
+    let isos = scene.prepare(&isovalues);
     let diag = if bounds.is_empty() {
         1.0
     } else {
@@ -423,10 +427,11 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         colorings,
         raygen: RayGen::new(camera, width, height),
         shader: Shader::new(&settings.light),
-        isos: scene.prepare(&isovalues),
+        // Rays are cut to where the surfaces can be; the offsets keep the data's scale.
+        bounds: scene.live_bounds(&isos),
+        isos,
         isovalues,
         surface_of,
-        bounds,
         peel_eps: diag * 1e-5,
         shadow_eps: diag * 2e-4,
         scale,

@@ -139,6 +139,15 @@ pub trait IsoScene: Sync {
     /// World-space bounds of the data.
     fn world_bounds(&self) -> Aabb;
 
+    /// World-space bounds outside which no hit of the prepared isovalues lies (empty when
+    /// there is none); the renderer clips its rays to them, so rays passing beside the
+    /// surfaces are never traced. Defaults to [`IsoScene::world_bounds`]; scenes whose
+    /// acceleration structure knows where the isovalues can be tighten them.
+    fn live_bounds(&self, isos: &Self::Isovalues) -> Aabb {
+        let _ = isos;
+        self.world_bounds()
+    }
+
     /// First hit along the ray in `[t_min, t_max]`.
     fn first_hit_prepared<S: Stats>(
         &self,
@@ -216,6 +225,58 @@ pub trait IsoScene: Sync {
     ) {
         let isos = self.prepare(isovalues);
         self.first_hit_packet_prepared(rays, t_min, t_max, &isos, out, stats);
+    }
+}
+
+/// A scene with its live bounds widened to the data's bounds ([`IsoScene::live_bounds`] left
+/// at its default), everything else delegated: the twin that tests compare frames cut to
+/// the live bounds against.
+pub struct WholeBounds<'a, S>(pub &'a S);
+
+impl<S: IsoScene> IsoScene for WholeBounds<'_, S> {
+    type Isovalues = S::Isovalues;
+
+    fn prepare(&self, isovalues: &[f32]) -> S::Isovalues {
+        self.0.prepare(isovalues)
+    }
+
+    fn world_bounds(&self) -> Aabb {
+        self.0.world_bounds()
+    }
+
+    fn first_hit_prepared<St: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isos: &S::Isovalues,
+        stats: &mut St,
+    ) -> Option<Hit> {
+        self.0.first_hit_prepared(ray, t_min, t_max, isos, stats)
+    }
+
+    fn occluded_prepared<St: Stats>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        isos: &S::Isovalues,
+        stats: &mut St,
+    ) -> bool {
+        self.0.occluded_prepared(ray, t_min, t_max, isos, stats)
+    }
+
+    fn first_hit_packet_prepared<St: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &S::Isovalues,
+        out: &mut [Option<Hit>],
+        stats: &mut St,
+    ) {
+        self.0
+            .first_hit_packet_prepared(rays, t_min, t_max, isos, out, stats);
     }
 }
 

@@ -564,6 +564,20 @@ impl IsoScene for TetScene {
         self.bounds
     }
 
+    /// The box of the BVH's live nodes ([`TetBvh::live_bounds`]), a hair wider so that
+    /// rounding of the renderer's slab test never cuts a crossing on its faces.
+    fn live_bounds(&self, isovalues: &Vec<f32>) -> Aabb {
+        let Some((lo, hi)) = self.bvh.live_bounds(isovalues) else {
+            return Aabb::EMPTY;
+        };
+        let pad = lo.abs().max(hi.abs()) * (4.0 * f32::EPSILON)
+            + Vec3::splat(self.bounds.extent().max_element() * 1e-5);
+        Aabb::new(
+            (lo - pad).max(self.bounds.min),
+            (hi + pad).min(self.bounds.max),
+        )
+    }
+
     fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
