@@ -118,13 +118,16 @@ fn compare_scene<T: Voxel>(
             if let Some(h) = hit {
                 assert!(h.normal.is_finite() && (h.normal.length() - 1.0).abs() < 1e-4);
             }
-            // Cut to the live bounds, as the renderer cuts its rays: the same hit.
-            let cut = live
-                .intersect(&ray, 0.0, f32::INFINITY)
-                .and_then(|(lo, hi)| scene.first_hit(&ray, lo, hi, isos, &mut NoStats));
+            // Cut to the live bounds as the renderer cuts its rays (it cut them to the data's
+            // box before): the same hit.
+            let cut = |bounds: &volume_core::math::Aabb| {
+                bounds
+                    .intersect(&ray, 0.0, f32::INFINITY)
+                    .and_then(|(lo, hi)| scene.first_hit(&ray, lo, hi, isos, &mut NoStats))
+            };
             assert_eq!(
-                cut.map(|h| (h.t, h.surface)),
-                hit.map(|h| (h.t, h.surface)),
+                cut(&live).map(|h| (h.t, h.surface)),
+                cut(&b).map(|h| (h.t, h.surface)),
                 "live bounds {live:?} of {b:?} changed the hit of {ray:?}"
             );
         }

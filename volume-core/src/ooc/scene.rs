@@ -883,7 +883,74 @@ fn child_of(left: [u32; 3], u: [u32; 3], h: usize, right: bool) -> ([u32; 3], us
     )
 }
 
+/// Most nodes [`OocScene::live_cell_box`] looks at (as the in-core
+/// [`crate::kdtree::LIVE_BOX_NODES`]).
+const LIVE_BOX_NODES: usize = 1 << 15;
+
 impl<T: Voxel> OocScene<T> {
+    /// The inclusive finest-cell box around every cell this frame's traversal can find a
+    /// crossing in (the in-core [`crate::kdtree::KdTree::live_cell_box`]), or `None` when
+    /// there is none. The walk follows the traversal's own rule through this frame's
+    /// snapshot: nodes whose quantized range passes a query, into a child treelet exactly
+    /// when the traversal would enter it (resident in the snapshot), else the node's LOD
+    /// cell whole. Breadth first until [`LIVE_BOX_NODES`] nodes were looked at; the
+    /// passing nodes left then count whole. No side effects (no use stamps, no misses).
+    fn live_cell_box(&self, isos: &OocIsovalues<T>) -> Option<[[u64; 3]; 2]> {
+        if isos.set.is_empty() || isos.count == 0 {
+            return None;
+        }
+        let queries = &isos.queries[..isos.count];
+        let layout = &self.shared.meta.layout;
+        let q = &self.shared.meta.quantizer;
+        let levels = &self.snap.levels;
+        let render = levels.len().checked_sub(1)?;
+        let root = levels[0].get(&0)?;
+        let cells = layout.cells();
+        let (mut lo, mut hi) = ([u64::MAX; 3], [0u64; 3]);
+        let mut grow = |level: usize, node: [u32; 3]| {
+            let e = layout.shape(level).extent;
+            for a in 0..3 {
+                let n = u64::from(node[a]);
+                lo[a] = lo[a].min(n * e[a]);
+                hi[a] = hi[a].max(((n + 1) * e[a]).min(cells[a]) - 1);
+            }
+        };
+        // (treelet level, treelet, tree level, node, heap slot in the treelet)
+        let mut todo = std::collections::VecDeque::new();
+        todo.push_back((0usize, root, 0usize, [0u32; 3], 0usize));
+        let mut looked = 0usize;
+        while let Some((tl, cur, level, node, h)) = todo.pop_front() {
+            if level == layout.level(tl).end {
+                let child = (tl < render)
+                    .then(|| linear_index(layout.level(tl + 1).roots, node.map(u64::from)))
+                    .and_then(|idx| levels[tl + 1].get(&idx));
+                match child {
+                    Some(child) => todo.push_back((tl + 1, child, level, node, 0)),
+                    None => grow(level, node),
+                }
+                continue;
+            }
+            let c = q.get(&cur.rec.nodes, h);
+            if !(isos.all || queries.iter().any(|x| x.passes(c[0], c[1]))) {
+                continue;
+            }
+            looked += 1;
+            if looked + todo.len() >= LIVE_BOX_NODES {
+                grow(level, node);
+                continue;
+            }
+            let ns = self.split_of(level, node);
+            for right in [false, true] {
+                if right && !ns.right_real {
+                    continue;
+                }
+                let (child, ch) = child_of(ns.left, ns.unit, h, right);
+                todo.push_back((tl, cur, level + 1, child, ch));
+            }
+        }
+        (lo[0] != u64::MAX).then_some([lo, hi])
+    }
+
     /// The finest complete level of this frame (0 = coarsest); demand-paged treelets of
     /// finer levels refine it where they are resident.
     pub fn level(&self) -> usize {
@@ -1327,6 +1394,19 @@ impl<T: Voxel> IsoScene for OocScene<T> {
         self.shared.frame.world_bounds()
     }
 
+    /// The finest cells the traversal can find a crossing in (the passing nodes of a walk
+    /// through this frame's resident treelets, as the traversal walks them), in world
+    /// units, a cell wider on every side ([`TraversalFrame::world_bounds_of_cells`]).
+    fn live_bounds(&self, isos: &OocIsovalues<T>) -> Aabb {
+        match self.live_cell_box(isos) {
+            Some([lo, hi]) => self
+                .shared
+                .frame
+                .world_bounds_of_cells(lo.map(|x| x as usize), hi.map(|x| x as usize)),
+            None => Aabb::EMPTY,
+        }
+    }
+
     #[inline]
     fn first_hit_prepared<S: Stats>(
         &self,
@@ -1610,6 +1690,76 @@ mod tests {
         assert!(paged.wait_until_finished(Duration::from_secs(30)));
         let scene = paged.scene(Intersector::Exact);
         assert!(assert_packets_equal_single_rays(&scene, &isos) > 500);
+    }
+
+    /// [`OocScene::live_bounds`] against the scene itself: each ray cut to them finds the
+    /// hit it finds uncut, and frames equal the whole-bounds twin's bit for bit; returns
+    /// the hits and whether the frame traced fewer rays.
+    fn assert_live_bounds_keep_hits(scene: &OocScene<f32>, isos: &[f32]) -> (usize, bool) {
+        use crate::render::{Camera, RenderSettings, Surface, WholeBounds, render};
+        let live = scene.live_bounds(&scene.prepare(isos));
+        let whole = scene.world_bounds();
+        let mut hits = 0;
+        // Cut as the renderer cuts them: to the data's box, or to the live bounds.
+        let cut = |b: &Aabb, r: &Ray| {
+            b.intersect(r, 0.0, f32::INFINITY)
+                .and_then(|(lo, hi)| scene.first_hit(r, lo, hi, isos, &mut NoStats))
+        };
+        for r in rays(whole, 1500) {
+            let (a, b) = (cut(&whole, &r), cut(&live, &r));
+            assert_eq!(a, b, "{r:?}, live bounds {live:?}");
+            hits += usize::from(a.is_some());
+        }
+        let settings = RenderSettings {
+            width: 64,
+            height: 48,
+            surfaces: isos.iter().map(|&c| Surface::new(c, [0.8; 3])).collect(),
+            collect_stats: true,
+            ..RenderSettings::default()
+        };
+        let cam = Camera::orbit(&whole, 30.0, 20.0, 40.0);
+        let go = AtomicBool::new(false);
+        let cut = render(scene, &cam, &settings, &go).unwrap();
+        let full = render(&WholeBounds(scene), &cam, &settings, &go).unwrap();
+        assert_eq!(cut.rgba8, full.rgba8);
+        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&cut.depth), bits(&full.depth));
+        assert!(cut.counts.rays <= full.counts.rays);
+        (hits, cut.counts.rays < full.counts.rays)
+    }
+
+    #[test]
+    fn live_bounds_keep_every_hit_at_every_level_and_when_paged() {
+        let dims = [31, 23, 17];
+        let isos = [2.5f32, 4.0];
+        let (_, _, vol) = setup(dims, 4, u64::MAX);
+        // Only the top treelet: its coarse nodes bound the box.
+        let coarse = vol.scene(Intersector::Exact);
+        assert_eq!(coarse.level(), 0);
+        let coarse_hits: usize = [[4.0f32], [8.0], [12.0]]
+            .iter()
+            .map(|iso| assert_live_bounds_keep_hits(&coarse, iso).0)
+            .sum();
+        assert!(coarse_hits > 100, "{coarse_hits}");
+        assert!(coarse.live_bounds(&coarse.prepare(&[1e6])).is_empty());
+        drop(coarse);
+        vol.set_isovalues(&isos);
+        assert!(vol.wait_until_finished(Duration::from_secs(30)));
+        let fine = vol.scene(Intersector::Exact);
+        let (hits, fewer) = assert_live_bounds_keep_hits(&fine, &isos);
+        assert!(hits > 100 && fewer, "{hits} hits, fewer rays: {fewer}");
+        drop(fine);
+        // Paged: child treelets resident under some nodes only.
+        let (_, _, paged) = setup(dims, 4, vol.resident_bytes() / 2);
+        paged.set_isovalues(&isos);
+        assert!(paged.wait_until_finished(Duration::from_secs(30)));
+        assert!(paged.budget_limited());
+        let first = paged.scene(Intersector::Exact);
+        assert!(assert_live_bounds_keep_hits(&first, &isos).0 > 100);
+        drop(first);
+        assert!(paged.wait_until_finished(Duration::from_secs(30)));
+        let scene = paged.scene(Intersector::Exact);
+        assert!(assert_live_bounds_keep_hits(&scene, &isos).0 > 100);
     }
 
     #[test]
