@@ -90,14 +90,21 @@ impl Aabb {
     ///
     /// Conservative: `t_far` is enlarged by `1 + 2·gamma(3)` (pbrt-v4 §6.1.2) so that a ray
     /// grazing a face is never lost to rounding. Zero direction components give `±inf`
-    /// reciprocals; `0·inf = NaN` cases (origin exactly on a slab plane) are resolved by
-    /// `min`/`max`, which ignore the NaN operand.
+    /// reciprocals; a ray parallel to an axis' slab with its origin exactly on one of the
+    /// slab's planes (`0·inf = NaN`) lies in the closed box's face: the whole line is inside
+    /// that slab. (glam's `a < b ? a : b` minimum would take the NaN's partner, `+inf` on the
+    /// low face, and drop the ray.)
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let t0 = (self.min - ray.origin) * ray.inv_dir;
         let t1 = (self.max - ray.origin) * ray.inv_dir;
-        let t_near = t0.min(t1);
-        let t_far = t0.max(t1) * (1.0 + 2.0 * float::gamma_f32(3));
+        let in_face = t0.is_nan_mask() | t1.is_nan_mask();
+        let t_near = Vec3::select(in_face, Vec3::NEG_INFINITY, t0.min(t1));
+        let t_far = Vec3::select(
+            in_face,
+            Vec3::INFINITY,
+            t0.max(t1) * (1.0 + 2.0 * float::gamma_f32(3)),
+        );
         let lo = t_near.max_element().max(t_min);
         let hi = t_far.min_element().min(t_max);
         (lo <= hi).then_some((lo, hi))
@@ -114,9 +121,23 @@ mod tests {
         let r = Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X);
         let (t0, t1) = b.intersect(&r, 0.0, f32::INFINITY).unwrap();
         assert!((t0 - 1.0).abs() < 1e-6 && (t1 - 2.0).abs() < 1e-6);
-        // A ray lying exactly in the face plane y = 1 still hits (closed box).
-        let graze = Ray::new(Vec3::new(-1.0, 1.0, 0.5), Vec3::X);
-        assert!(b.intersect(&graze, 0.0, f32::INFINITY).is_some());
+        // A ray lying exactly in a face plane still hits (closed box): high and low faces,
+        // along and against the axis, and on an edge of two faces.
+        for (o, d) in [
+            (Vec3::new(-1.0, 1.0, 0.5), Vec3::X),
+            (Vec3::new(-1.0, 0.0, 0.5), Vec3::X),
+            (Vec3::new(2.0, 0.0, 0.5), -Vec3::X),
+            (Vec3::new(0.5, 1.0, -1.0), Vec3::Z),
+            (Vec3::new(-1.0, 0.0, 0.0), Vec3::X),
+            (Vec3::new(0.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 1.0)),
+        ] {
+            let graze = Ray::new(o, d);
+            let (t0, t1) = b.intersect(&graze, 0.0, f32::INFINITY).expect("in a face");
+            assert!(
+                (t0 - 1.0).abs() < 1e-6 && (t1 - 2.0).abs() < 1e-5,
+                "{o} {d}: {t0} {t1}"
+            );
+        }
         let miss = Ray::new(Vec3::new(-1.0, 1.5, 0.5), Vec3::X);
         assert!(b.intersect(&miss, 0.0, f32::INFINITY).is_none());
         assert!(b.intersect(&r, 0.0, 0.5).is_none());

@@ -348,11 +348,16 @@ impl RayGen {
         let one = f32x8::splat(1.0);
         let widen = f32x8::splat(1.0 + 2.0 * gamma_f32(3));
         // `Aabb::intersect` per axis: `(min - eye) · inv`, `(max - eye) · inv`, glam's
-        // component-wise min/max (`minps`/`maxps` operand order), `· widen` on the far side.
+        // component-wise min/max (`minps`/`maxps` operand order), `· widen` on the far side;
+        // a NaN (a ray in a face plane) opens the slab to the whole line.
         let slab = |min: f32, max: f32, eye: f32, inv: f32x8| {
             let t0 = f32x8::splat(min - eye) * inv;
             let t1 = f32x8::splat(max - eye) * inv;
-            (t0.fast_min(t1), t0.fast_max(t1) * widen)
+            let in_face = t0.is_nan() | t1.is_nan();
+            (
+                in_face.select(f32x8::splat(f32::NEG_INFINITY), t0.fast_min(t1)),
+                in_face.select(f32x8::splat(f32::INFINITY), t0.fast_max(t1) * widen),
+            )
         };
         for half in 0..2 {
             let cols = &columns[8 * half..8 * half + 8];
@@ -517,7 +522,16 @@ mod tests {
                 // faces through the eye).
                 let columns: [Vec3; 16] =
                     std::array::from_fn(|i| Vec3::new(0.0, 0.1 * i as f32 - 0.8, -1.0));
+                // Its low x face through the eye: every one of these rays lies in the face.
+                let face = Aabb::new(eye - Vec3::new(0.0, 5.0, 5.0), eye + Vec3::splat(5.0));
                 for row in [Vec3::ZERO, Vec3::new(0.0, 0.3, 0.0)] {
+                    let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); 16];
+                    let (mut lo, mut hi) = ([0.0; 16], [0.0; 16]);
+                    let meets =
+                        raygen.rays_row_in(&columns, row, &face, &mut rays, &mut lo, &mut hi);
+                    if projection == Projection::Pinhole {
+                        assert_eq!(meets, 0xffff, "rays in the box's face: {row}");
+                    }
                     for b in &boxes {
                         let mut rays = [Ray::new(Vec3::ZERO, Vec3::X); 16];
                         let (mut lo, mut hi) = ([0.0; 16], [0.0; 16]);
