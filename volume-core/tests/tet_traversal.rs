@@ -761,6 +761,28 @@ fn time_steps_per_step_bvh_equals_refit() {
 
 /// The shared renderer draws a `TetScene`: its depth buffer equals the `f64` brute force on
 /// the same primary rays, with packets and without, faceted and smooth.
+/// Every pixel's depth in `frame` against the brute-force first hit of its primary ray;
+/// returns the pixels that hit.
+fn depth_agrees_with_brute_force(
+    scene: &TetScene,
+    cam: &volume_core::render::Camera,
+    frame: &volume_core::render::Frame,
+    isos: &[f32],
+) -> usize {
+    let (w, h) = (frame.width, frame.height);
+    let mut hits = 0;
+    for j in 0..h {
+        for i in 0..w {
+            let ray = cam.primary_ray(i, j, w, h);
+            let depth = frame.depth[(j * w + i) as usize];
+            let got = depth.is_finite().then_some(depth);
+            hits += usize::from(got.is_some());
+            agrees(scene, &ray, 0.0, f32::INFINITY, isos, got).unwrap();
+        }
+    }
+    hits
+}
+
 #[test]
 fn renderer_depth_matches_brute_force() {
     use std::sync::atomic::AtomicBool;
@@ -785,16 +807,7 @@ fn renderer_depth_matches_brute_force() {
             ..RenderSettings::default()
         };
         let frame = render(&scene, &cam, &settings, &go).unwrap();
-        let mut hits = 0;
-        for j in 0..h {
-            for i in 0..w {
-                let ray = cam.primary_ray(i, j, w, h);
-                let depth = frame.depth[(j * w + i) as usize];
-                let got = depth.is_finite().then_some(depth);
-                hits += usize::from(got.is_some());
-                agrees(&scene, &ray, 0.0, f32::INFINITY, &iso, got).unwrap();
-            }
-        }
+        let hits = depth_agrees_with_brute_force(&scene, &cam, &frame, &iso);
         assert!(hits > (w * h / 10) as usize, "{hits}");
     }
 }
@@ -848,16 +861,7 @@ fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
         let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&cut.depth), bits(&whole.depth));
         assert!(cut.counts.rays < whole.counts.rays);
-        let mut hits = 0;
-        for j in 0..h {
-            for i in 0..w {
-                let ray = cam.primary_ray(i, j, w, h);
-                let depth = cut.depth[(j * w + i) as usize];
-                let got = depth.is_finite().then_some(depth);
-                hits += usize::from(got.is_some());
-                agrees(&scene, &ray, 0.0, f32::INFINITY, &[2.2, 1.5], got).unwrap();
-            }
-        }
+        let hits = depth_agrees_with_brute_force(&scene, &cam, &cut, &[2.2, 1.5]);
         assert!(hits > 20, "{hits} hits");
     }
 }

@@ -157,12 +157,7 @@ impl TraversalFrame {
         // The `f32` corners (far from the origin, an ulp can exceed a fine cell) and the
         // `f32` sample positions of explicit axes round: a few ulps and a relative hair
         // more, then the volume's own faces wherever the box reaches them.
-        let pad = b.min.abs().max(b.max.abs()) * (4.0 * f32::EPSILON)
-            + Vec3::splat(self.world_bounds.extent().max_element() * 1e-5);
-        Aabb::new(
-            (b.min - pad).max(self.world_bounds.min),
-            (b.max + pad).min(self.world_bounds.max),
-        )
+        b.widened_within(&self.world_bounds)
     }
 
     /// The world ray in traversal units (f64 transform, then f32).

@@ -86,6 +86,18 @@ impl Aabb {
         (self.min + self.max) * 0.5
     }
 
+    /// This box widened by a few `f32` ulps of its coordinates plus `1e-5` of `outer`'s
+    /// largest extent, then kept inside `outer`: the margin a conservative box computed in
+    /// `f32` needs against the rounding of its corners and of the slab tests cut to it.
+    pub fn widened_within(&self, outer: &Aabb) -> Aabb {
+        let pad = self.min.abs().max(self.max.abs()) * (4.0 * f32::EPSILON)
+            + Vec3::splat(outer.extent().max_element() * 1e-5);
+        Aabb::new(
+            (self.min - pad).max(outer.min),
+            (self.max + pad).min(outer.max),
+        )
+    }
+
     /// Parametric overlap of the ray with the box, clipped to `[t_min, t_max]`, or `None`.
     ///
     /// Conservative: `t_far` is enlarged by `1 + 2·gamma(3)` (pbrt-v4 §6.1.2) so that a ray

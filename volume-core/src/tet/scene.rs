@@ -570,12 +570,7 @@ impl IsoScene for TetScene {
         let Some((lo, hi)) = self.bvh.live_bounds(isovalues) else {
             return Aabb::EMPTY;
         };
-        let pad = lo.abs().max(hi.abs()) * (4.0 * f32::EPSILON)
-            + Vec3::splat(self.bounds.extent().max_element() * 1e-5);
-        Aabb::new(
-            (lo - pad).max(self.bounds.min),
-            (hi + pad).min(self.bounds.max),
-        )
+        Aabb::new(lo, hi).widened_within(&self.bounds)
     }
 
     fn first_hit_prepared<S: Stats>(
