@@ -79,15 +79,25 @@ pub(crate) fn cubic_f32(g: &[f32; 8], p0: [f32; 3], dp: [f32; 3]) -> [f32; 4] {
 /// `f64` twin of [`cubic_f32`].
 #[inline]
 pub(crate) fn cubic_f64(g: &[f64; 8], p0: [f64; 3], dp: [f64; 3]) -> [f64; 4] {
-    let mut al = [0.0f64; 4];
-    let mut be = [0.0f64; 4];
+    cubic_of(g, p0, dp)
+}
+
+/// [`cubic_f32`]'s operations, in the same order, for any float type: [`cubic_f64`] and
+/// its lanes ([`super::slow_x8`]), bit-identical per lane.
+#[inline(always)]
+pub(crate) fn cubic_of<F>(g: &[F; 8], p0: [F; 3], dp: [F; 3]) -> [F; 4]
+where
+    F: Copy + std::ops::Add<Output = F> + std::ops::Sub<Output = F> + std::ops::Mul<Output = F>,
+{
+    let mut al = [g[0]; 4];
+    let mut be = [g[0]; 4];
     for xy in 0..4 {
         let (g0, g1) = (g[xy], g[xy + 4]);
         let dz = g1 - g0;
         al[xy] = g0 + dz * p0[2];
         be[xy] = dz * dp[2];
     }
-    let mut q = [[0.0f64; 3]; 2];
+    let mut q = [[g[0]; 3]; 2];
     for x in 0..2 {
         let (a0, b0, a1, b1) = (al[x], be[x], al[x + 2], be[x + 2]);
         let (da, db) = (a1 - a0, b1 - b0);
@@ -109,7 +119,16 @@ fn eval(k: &[f32; 4], s: f32) -> f32 {
 }
 
 #[inline(always)]
-fn eval64(k: &[f64; 4], s: f64) -> f64 {
+pub(super) fn eval64(k: &[f64; 4], s: f64) -> f64 {
+    eval_of(k, s)
+}
+
+/// Horner's rule for the cubic `k` at `s`, for any float type ([`eval64`] and its lanes).
+#[inline(always)]
+pub(super) fn eval_of<F>(k: &[F; 4], s: F) -> F
+where
+    F: Copy + std::ops::Add<Output = F> + std::ops::Mul<Output = F>,
+{
     ((k[0] * s + k[1]) * s + k[2]) * s + k[3]
 }
 
@@ -299,7 +318,8 @@ impl CellIntersector for Exact {
 
     /// The corner differences once per cell, the segments' cubics and the certified early
     /// out 8 lanes at a time (the scalar operations lane-wise); only lanes that are not
-    /// clear run the `f64` slow path, the same function the scalar method calls.
+    /// clear run the `f64` slow path, side by side ([`super::slow_x8`], bit-identical to
+    /// the function the scalar method calls).
     #[inline(always)]
     fn first_roots_x8<T: Voxel>(
         &self,
@@ -320,16 +340,11 @@ impl CellIntersector for Exact {
         let seg_err = segment_error_x8(seg);
         let margin = f32x8::splat(margin.gsum)
             * (f32x8::splat(32.0 * f32::EPSILON) + f32x8::splat(1.1) * seg_err);
-        let mut bits = mask & !bernstein_clear_x8(&k, margin);
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            if let Some(s) = exact_slow(corners, iso, &seg.lane(i)) {
-                r.s[i] = s;
-                r.mask |= 1 << i;
-            }
+        let slow = mask & !bernstein_clear_x8(&k, margin);
+        if slow == 0 {
+            return r;
         }
-        r
+        super::slow_x8::exact_slow_x8(corners, iso, seg, slow)
     }
 }
 
@@ -351,7 +366,7 @@ fn segment_error_x8(seg: &SegmentsX8<'_>) -> f32x8 {
 /// Newton steps ([`refine_newton_f64`]) until the bracket is a quarter of an `f32` ulp of
 /// the hit's `t` (what the hit can hold); the root as a position on the `f32` segment.
 #[inline(never)]
-fn exact_slow<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
+pub(super) fn exact_slow<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Option<f64> {
     let Ok(c) = CubicF64::new(corners, iso, seg) else {
         return Some(0.0);
     };
@@ -580,6 +595,24 @@ impl CellIntersector for Reference {
     }
 }
 
+/// Corner differences `v − iso` in `f64` (exact for every voxel type), divided by their
+/// largest magnitude when that leaves `1e-200..=1e200`; `None` for a cell equal to the
+/// isovalue everywhere.
+#[inline(always)]
+pub(super) fn corner_diffs_f64<T: Voxel>(corners: &[T; 8], iso: f32) -> Option<[f64; 8]> {
+    let iso = f64::from(iso);
+    let g = corners.map(|v| v.to_f64() - iso);
+    let gmax = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if gmax == 0.0 {
+        return None;
+    }
+    Some(if (1e-200..=1e200).contains(&gmax) {
+        g
+    } else {
+        g.map(|x| x / gmax)
+    })
+}
+
 /// A cell segment's cubic in `f64` on the exact segment, with the touch tolerance of
 /// [`first_root_f64`] (shared by [`Reference`] and [`Exact`]'s slow path).
 struct CubicF64 {
@@ -594,15 +627,7 @@ impl CubicF64 {
     /// `Err` for a cell equal to the isovalue everywhere (the hit is the segment's entry).
     #[inline(always)]
     fn new<T: Voxel>(corners: &[T; 8], iso: f32, seg: &CellSegment) -> Result<Self, ()> {
-        let iso = f64::from(iso);
-        let mut g = corners.map(|v| v.to_f64() - iso);
-        let gmax = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        if gmax == 0.0 {
-            return Err(());
-        }
-        if !(1e-200..=1e200).contains(&gmax) {
-            g = g.map(|x| x / gmax);
-        }
+        let g = corner_diffs_f64(corners, iso).ok_or(())?;
         let (p0, dp, t0, t1) = seg.local_f64();
         let k = cubic_f64(&g, p0, dp);
         // Bound on Σ|terms| of f over the segment: each weight's magnitude is at most
@@ -661,7 +686,7 @@ pub(crate) fn first_root_f64(
 /// `|a| + |b| + |c|`). Most cells a ray crosses are: they then skip the extrema's square
 /// root and Newton steps.
 #[inline(always)]
-fn monotone_on_unit(k: &[f64; 4]) -> bool {
+pub(super) fn monotone_on_unit(k: &[f64; 4]) -> bool {
     let (b0, b1, b2) = (k[2], k[2] + k[1], 3.0 * k[0] + 2.0 * k[1] + k[2]);
     let slack = 16.0 * f64::EPSILON * (k[0].abs() + k[1].abs() + k[2].abs());
     (b0 > slack && b1 > slack && b2 > slack) || (b0 < -slack && b1 < -slack && b2 < -slack)

@@ -4,6 +4,7 @@
 //!
 //! - [`frame`]: world rays into traversal (cell) units; cell boxes; world normals.
 //! - [`methods`]: the cubic along a cell segment and the five intersectors.
+//! - `slow_x8`: the exact intersector's `f64` slow path for several lanes of a packet.
 //! - [`accuracy`]: the extreme suite and the harness that scores an intersector against
 //!   the `f64` reference (missed hits, false hits, |Δt| in cell units).
 //!
@@ -31,6 +32,7 @@ pub mod accuracy;
 pub mod frame;
 pub mod methods;
 pub mod packet;
+mod slow_x8;
 
 use std::str::FromStr;
 

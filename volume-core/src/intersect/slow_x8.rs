@@ -1,0 +1,332 @@
+//! The exact intersector's `f64` slow path for several lanes of a packet at once.
+//!
+//! A packet's rays that meet the surface in one cell all leave the certified `f32` filter of
+//! [`super::methods::Exact`] together and each runs the `f64` slow path: the exact segment
+//! ([`super::CellSegment::local_f64`]), its cubic, and safeguarded Newton steps to a quarter of an
+//! `f32` ulp of the hit's `t`. One lane at a time that path is a chain of dependent divisions
+//! and branches (about a sixth of an MRI frame's time); here the lanes run it side by side in
+//! `f64x8`, each lane executing exactly the scalar operations in the same order (a branch of
+//! the scalar code becomes a select, a loop's exit a lane mask), so every root is
+//! bit-identical to [`super::methods::exact_slow`]'s (tested below and by the packet ==
+//! single-ray tests).
+//!
+//! Lanes whose cubic is not certified monotone on the segment (extrema to isolate first,
+//! [`super::methods::first_root_f64`]) take the scalar path: they are rare, and their
+//! branches differ by lane.
+
+use wide::{f32x8, f64x8};
+
+use super::methods::{EXACT_ITERATIONS, corner_diffs_f64, cubic_of, eval_of, exact_slow};
+use super::{RootsX8, SegmentsX8};
+use crate::voxel::Voxel;
+
+#[inline(always)]
+fn wide64(x: f32x8) -> f64x8 {
+    f64x8::new(x.to_array().map(f64::from))
+}
+
+#[inline(always)]
+fn bits(m: f64x8) -> u32 {
+    m.to_bitmask()
+}
+
+/// [`exact_slow`] for the lanes in `lanes`: each lane's root (its `s` and mask bit) exactly
+/// as the scalar path finds it.
+pub(crate) fn exact_slow_x8<T: Voxel>(
+    corners: &[T; 8],
+    iso: f32,
+    seg: &SegmentsX8<'_>,
+    lanes: u32,
+) -> RootsX8 {
+    let Some(g) = corner_diffs_f64(corners, iso) else {
+        // The cell equals the isovalue: every segment starts on the surface.
+        return RootsX8 {
+            s: [0.0; 8],
+            mask: lanes,
+        };
+    };
+    let rays = seg.rays;
+    // CellSegment::local_f64, lane-wise. A packet has no zero direction component
+    // (`crate::kdtree::packet_compatible`); lanes that do take the scalar path.
+    let mut scalar = 0u32;
+    let (mut in32, mut out32) = (f32x8::splat(f32::NEG_INFINITY), f32x8::splat(f32::INFINITY));
+    let (mut in64, mut out64) = (f64x8::splat(f64::NEG_INFINITY), f64x8::splat(f64::INFINITY));
+    let mut o64 = [f64x8::ZERO; 3];
+    let mut d64 = [f64x8::ZERO; 3];
+    for a in 0..3 {
+        scalar |= rays.dir[a].simd_eq(f32x8::ZERO).to_bitmask();
+        let (lo32, hi32) = (f32x8::splat(seg.lo[a]), f32x8::splat(seg.hi[a]));
+        let ta = (lo32 - rays.origin[a]) * rays.inv_dir[a];
+        let tb = (hi32 - rays.origin[a]) * rays.inv_dir[a];
+        let (o, d) = (wide64(rays.origin[a]), wide64(rays.dir[a]));
+        let ua = (f64x8::splat(f64::from(seg.lo[a])) - o) / d;
+        let ub = (f64x8::splat(f64::from(seg.hi[a])) - o) / d;
+        let (n, f, n64, f64_) = if rays.dir_pos[a] {
+            (ta, tb, ua, ub)
+        } else {
+            (tb, ta, ub, ua)
+        };
+        in32 = in32.max(n);
+        out32 = out32.min(f);
+        in64 = in64.max(n64);
+        out64 = out64.min(f64_);
+        o64[a] = o;
+        d64[a] = d;
+    }
+    let (tn, tf) = (wide64(seg.t_near), wide64(seg.t_far));
+    // (Equal in f64 exactly when equal in f32: the widening is exact.)
+    let t0 = tn.simd_eq(wide64(in32)).select(in64, tn);
+    let t1 = tf.simd_eq(wide64(out32)).select(out64, tf);
+    let t1 = t1.max(t0);
+    let mut p0 = [f64x8::ZERO; 3];
+    let mut dp = [f64x8::ZERO; 3];
+    for a in 0..3 {
+        let lo = f64x8::splat(f64::from(seg.lo[a]));
+        let w = f64x8::splat(f64::from(seg.hi[a]) - f64::from(seg.lo[a]));
+        p0[a] = ((o64[a] - lo) + d64[a] * t0) / w;
+        dp[a] = d64[a] * (t1 - t0) / w;
+    }
+    let k = cubic_of(&g.map(f64x8::splat), p0, dp);
+
+    // exact_slow's tolerance on s.
+    let span = t1 - t0;
+    let s_tol = (f64x8::splat(0.25 * f64::from(f32::EPSILON)) * t0.abs().max(t1.abs()) / span)
+        .max(f64x8::splat(f64::EPSILON));
+    let s_tol = span.simd_gt(f64x8::ZERO).select(s_tol, f64x8::ONE);
+
+    // first_root_f64 on the lanes whose cubic is certified monotone (monotone_on_unit).
+    let f0 = k[3];
+    let (b0, b1, b2) = (
+        k[2],
+        k[2] + k[1],
+        f64x8::splat(3.0) * k[0] + f64x8::splat(2.0) * k[1] + k[2],
+    );
+    let slack = f64x8::splat(16.0 * f64::EPSILON) * (k[0].abs() + k[1].abs() + k[2].abs());
+    let neg_slack = -slack;
+    let monotone = (b0.simd_gt(slack) & b1.simd_gt(slack) & b2.simd_gt(slack))
+        | (b0.simd_lt(neg_slack) & b1.simd_lt(neg_slack) & b2.simd_lt(neg_slack));
+    let (zero, one) = (f64x8::ZERO, f64x8::ONE);
+    let start_zero = f0.simd_eq(zero);
+    let at_start = lanes & !scalar & bits(start_zero);
+    let vector = lanes & !scalar & !at_start & bits(monotone);
+    scalar |= lanes & !at_start & !vector;
+    let f1 = eval_of(&k, one);
+    let end_zero = f1.simd_eq(zero);
+    let at_end = vector & bits(end_zero);
+    let crossing = vector & !at_end & bits(f1.simd_gt(zero) ^ f0.simd_gt(zero));
+    let mut s = zero;
+    if crossing != 0 {
+        s = refine_newton_x8(&k, f0, f1, s_tol, mask_of(crossing));
+    }
+    let s = start_zero.select(zero, end_zero.select(one, s));
+    // CubicF64::s_on_f32_segment: the root as a position on the f32 segment.
+    let t = t0 + s * (t1 - t0);
+    let mut r = RootsX8 {
+        s: tf.simd_gt(tn).select((t - tn) / (tf - tn), zero).to_array(),
+        mask: at_start | at_end | crossing,
+    };
+    for i in lane_indices(scalar & lanes) {
+        if let Some(s) = exact_slow(corners, iso, &seg.lane(i)) {
+            r.s[i] = s;
+            r.mask |= 1 << i;
+        }
+    }
+    r
+}
+
+/// [`super::methods::refine_newton_f64`] on the bracket `[0, 1]` (`f(0) = f0`,
+/// `f(1) = f1` of opposite signs) for the lanes of the mask `lanes`, each lane the scalar
+/// steps; other lanes return garbage.
+#[inline(always)]
+fn refine_newton_x8(k: &[f64x8; 4], f0: f64x8, f1: f64x8, s_tol: f64x8, lanes: f64x8) -> f64x8 {
+    let zero = f64x8::ZERO;
+    let half = f64x8::splat(0.5);
+    let lo_pos = f0.simd_gt(zero);
+    let (mut lo, mut f_lo, mut hi, mut f_hi) = (zero, f0, f64x8::ONE, f1);
+    let d = [f64x8::splat(3.0) * k[0], f64x8::splat(2.0) * k[1], k[2]];
+    let half_tol = half * s_tol;
+    let mut s = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+    let (mut step_old, mut step_older) = (hi - lo, hi - lo);
+    // Lanes still stepping; lanes that evaluated an exact zero, and where.
+    let mut live = lanes;
+    let (mut exact, mut s_exact) = (zero, zero);
+    for _ in 0..EXACT_ITERATIONS {
+        live &= !(hi - lo).simd_le(s_tol);
+        if live.to_bitmask() == 0 {
+            break;
+        }
+        let inside = s.simd_gt(lo) & s.simd_lt(hi);
+        s = inside.select(s, half * (lo + hi));
+        let fs = eval_of(k, s);
+        let z = live & fs.simd_eq(zero);
+        exact |= z;
+        s_exact = z.select(s, s_exact);
+        live &= !z;
+        // The evaluated point replaces the bracket end of its sign.
+        let set_lo = live & !(fs.simd_gt(zero) ^ lo_pos);
+        let set_hi = live & !set_lo;
+        lo = set_lo.select(s, lo);
+        f_lo = set_lo.select(fs, f_lo);
+        hi = set_hi.select(s, hi);
+        f_hi = set_hi.select(fs, f_hi);
+        let step = -fs / ((d[0] * s + d[1]) * s + d[2]);
+        let bisect = step.is_nan() | step.abs().simd_gt(half * step_older);
+        let short = step.abs().simd_lt(half_tol);
+        // half_tol.copysign(step) (half_tol is not negative).
+        let stretched = half_tol | (step & f64x8::splat(-0.0));
+        let step = bisect.select(half * (lo + hi) - s, short.select(stretched, step));
+        (step_older, step_old) = (step_old, step.abs());
+        s += step;
+    }
+    let s_end = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+    // f64::clamp(lo, hi), NaN staying NaN.
+    let s_end = s_end
+        .simd_lt(lo)
+        .select(lo, s_end.simd_gt(hi).select(hi, s_end));
+    exact.select(s_exact, s_end)
+}
+
+/// The lane mask (all bits set in lane `i` when bit `i` is) of a bit mask.
+#[inline(always)]
+fn mask_of(bits: u32) -> f64x8 {
+    f64x8::new(std::array::from_fn(|i| {
+        if bits & (1 << i) != 0 {
+            f64::from_bits(u64::MAX)
+        } else {
+            0.0
+        }
+    }))
+}
+
+/// The indices of the set bits of `mask`, lowest first.
+#[inline(always)]
+fn lane_indices(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::intersect::frame::slab;
+    use crate::intersect::{LocalRay, RaysX8};
+    use crate::math::rng::Rng;
+
+    /// Random packets through one cell: every lane's root from the lanes side by side equals
+    /// the scalar slow path's, bit for bit (or both find none).
+    fn lanes_equal_scalar<T: Voxel>(
+        rng: &mut Rng,
+        corner: impl Fn(&mut Rng) -> T,
+        iso: f32,
+        seen: &mut [usize; 3],
+    ) {
+        let lo = Vec3::new(
+            rng.range_f32(-40.0, 40.0),
+            rng.range_f32(-40.0, 40.0),
+            rng.range_f32(-40.0, 40.0),
+        );
+        let hi = lo
+            + Vec3::new(
+                rng.range_f32(0.3, 2.0),
+                rng.range_f32(0.3, 2.0),
+                rng.range_f32(0.3, 2.0),
+            );
+        let corners: [T; 8] = std::array::from_fn(|_| corner(rng));
+        let sign = [0, 1, 2].map(|_| if rng.below(2) == 0 { 1.0f32 } else { -1.0 });
+        let far = rng.range_f32(1.0, 300.0);
+        let eye = (lo + hi) * 0.5 - Vec3::from(sign) * far;
+        let rays: [LocalRay; 8] = std::array::from_fn(|_| {
+            let target = lo
+                + (hi - lo)
+                    * Vec3::new(
+                        rng.range_f32(0.0, 1.0),
+                        rng.range_f32(0.0, 1.0),
+                        rng.range_f32(0.0, 1.0),
+                    );
+            let d = (target - eye).abs().max(Vec3::splat(1e-4)) * Vec3::from(sign);
+            LocalRay::new(eye, d * rng.range_f32(0.2, 5.0))
+        });
+        let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
+            [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
+        };
+        let packet = RaysX8 {
+            origin: lanes(&|r| r.origin),
+            dir: lanes(&|r| r.dir),
+            inv_dir: lanes(&|r| r.inv_dir),
+            dir_pos: sign.map(|s| s > 0.0),
+            t_lo: f32x8::ZERO,
+            t_hi: f32x8::splat(f32::INFINITY),
+        };
+        // Ends from the slab test (faces, the usual case) or cut inside the cell (a ray
+        // that starts or stops there: peeled, shadow and clipped rays).
+        let ends: [(f32, f32); 8] = std::array::from_fn(|i| {
+            let (n, f) = slab(&rays[i], lo, hi, 0.0, f32::INFINITY).unwrap_or((1.0, 1.0));
+            let cut = |t: f32| n + (f - n) * t;
+            match rng.below(4) {
+                0 => (cut(rng.range_f32(0.0, 1.0)), f),
+                1 => (n, cut(rng.range_f32(0.0, 1.0))),
+                _ => (n, f),
+            }
+        });
+        let seg = SegmentsX8 {
+            rays: &packet,
+            lo,
+            hi,
+            t_near: f32x8::new(ends.map(|e| e.0)),
+            t_far: f32x8::new(ends.map(|e| e.1)),
+        };
+        let lanes_on = rng.next_u32() & 0xff | 3;
+        let got = exact_slow_x8(&corners, iso, &seg, lanes_on);
+        assert_eq!(got.mask & !lanes_on, 0, "roots only on the lanes asked for");
+        for i in lane_indices(lanes_on) {
+            let want = exact_slow(&corners, iso, &seg.lane(i));
+            let got_i = (got.mask & (1 << i) != 0).then(|| got.s[i]);
+            assert_eq!(
+                got_i.map(f64::to_bits),
+                want.map(f64::to_bits),
+                "lane {i}: {got_i:?} vs {want:?}, corners {corners:?}, iso {iso}, segment {:?}",
+                seg.lane(i)
+            );
+            seen[usize::from(want.is_some())] += 1;
+            seen[2] += usize::from(want.is_some_and(|s| s > 0.0 && s < 1.0));
+        }
+    }
+
+    #[test]
+    fn lanes_side_by_side_equal_the_scalar_slow_path() {
+        let mut rng = Rng::new(2026);
+        let mut seen = [0usize; 3];
+        for _ in 0..4000 {
+            lanes_equal_scalar(
+                &mut rng,
+                |r: &mut Rng| r.range_f32(-1.0, 1.0),
+                0.0,
+                &mut seen,
+            );
+            // Shallow cells: cubics with extrema near zero (the scalar lanes).
+            lanes_equal_scalar(
+                &mut rng,
+                |r: &mut Rng| 0.3 + 0.02 * r.range_f32(-1.0, 1.0),
+                0.3,
+                &mut seen,
+            );
+            // Integer voxels: corners on the isovalue, cells equal to it.
+            let spread = rng.below(3);
+            lanes_equal_scalar(
+                &mut rng,
+                |r: &mut Rng| 100 + r.below(2 * spread + 1) as i16 - spread as i16,
+                100.0,
+                &mut seen,
+            );
+        }
+        let [none, some, inside] = seen;
+        assert!(none > 5_000 && some > 5_000 && inside > 5_000, "{seen:?}");
+    }
+}
