@@ -318,7 +318,7 @@ impl CellIntersector for Exact {
 
     /// The corner differences once per cell, the segments' cubics and the certified early
     /// out 8 lanes at a time (the scalar operations lane-wise); only lanes that are not
-    /// clear run the `f64` slow path, side by side ([`super::slow_x8`], bit-identical to
+    /// clear run the `f64` slow path, side by side (`intersect/slow_x8.rs`, bit-identical to
     /// the function the scalar method calls).
     #[inline(always)]
     fn first_roots_x8<T: Voxel>(
