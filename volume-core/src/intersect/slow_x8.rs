@@ -10,9 +10,10 @@
 //! bit-identical to [`super::methods::exact_slow`]'s (tested below and by the packet ==
 //! single-ray tests).
 //!
-//! Lanes whose cubic is not certified monotone on the segment (extrema to isolate first,
-//! [`super::methods::first_root_f64`]) take the scalar path: they are rare, and their
-//! branches differ by lane.
+//! Even a lone lane takes this path: without the scalar code's branches it ran faster
+//! (docs/benchmarks.md). Lanes whose cubic is not certified monotone on the segment (extrema
+//! to isolate first, [`super::methods::first_root_f64`]) take the scalar path: about one call
+//! in twenty on the MNI frame, and their branches differ by lane.
 
 use wide::{f32x8, f64x8};
 
