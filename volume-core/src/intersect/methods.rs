@@ -119,7 +119,7 @@ fn eval(k: &[f32; 4], s: f32) -> f32 {
 }
 
 #[inline(always)]
-pub(super) fn eval64(k: &[f64; 4], s: f64) -> f64 {
+fn eval64(k: &[f64; 4], s: f64) -> f64 {
     eval_of(k, s)
 }
 
@@ -686,7 +686,7 @@ pub(crate) fn first_root_f64(
 /// `|a| + |b| + |c|`). Most cells a ray crosses are: they then skip the extrema's square
 /// root and Newton steps.
 #[inline(always)]
-pub(super) fn monotone_on_unit(k: &[f64; 4]) -> bool {
+fn monotone_on_unit(k: &[f64; 4]) -> bool {
     let (b0, b1, b2) = (k[2], k[2] + k[1], 3.0 * k[0] + 2.0 * k[1] + k[2]);
     let slack = 16.0 * f64::EPSILON * (k[0].abs() + k[1].abs() + k[2].abs());
     (b0 > slack && b1 > slack && b2 > slack) || (b0 < -slack && b1 < -slack && b2 < -slack)

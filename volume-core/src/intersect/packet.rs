@@ -32,6 +32,25 @@ pub struct RaysX8 {
     pub t_hi: f32x8,
 }
 
+#[cfg(test)]
+impl RaysX8 {
+    /// Eight rays as lanes (tests), with direction signs from the first ray (the rays must
+    /// share them, as a packet's do) and the intervals `t_lo..t_hi`.
+    pub(crate) fn from_rays(rays: &[super::LocalRay; LANES], t_lo: f32x8, t_hi: f32x8) -> Self {
+        let lanes = |f: &dyn Fn(&super::LocalRay) -> Vec3| -> [f32x8; 3] {
+            [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
+        };
+        Self {
+            origin: lanes(&|r| r.origin),
+            dir: lanes(&|r| r.dir),
+            inv_dir: lanes(&|r| r.inv_dir),
+            dir_pos: [0, 1, 2].map(|a| rays[0].dir[a] > 0.0),
+            t_lo,
+            t_hi,
+        }
+    }
+}
+
 /// The segments of a packet's rays inside one cell (`t_near`, `t_far` per lane).
 #[derive(Debug, Clone, Copy)]
 pub struct SegmentsX8<'a> {
@@ -282,17 +301,7 @@ mod tests {
             }
         });
         let active = rng.next_u32() & 0xff | 1;
-        let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
-            [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
-        };
-        let packet = RaysX8 {
-            origin: lanes(&|r| r.origin),
-            dir: lanes(&|r| r.dir),
-            inv_dir: lanes(&|r| r.inv_dir),
-            dir_pos: [0, 1, 2].map(|a| sign[a] > 0.0),
-            t_lo: f32x8::new(t_lo),
-            t_hi: f32x8::new(t_hi),
-        };
+        let packet = RaysX8::from_rays(&rays, f32x8::new(t_lo), f32x8::new(t_hi));
         let mut st_x8 = CountStats::default();
         let got = intersect_prepared_cell_x8(&pc, &packet, active, &isos, c, &mut st_x8);
         let mut st_1 = CountStats::default();
@@ -389,17 +398,7 @@ mod tests {
                 let d = Vec3::from(sign.map(|s| s * rng.range_f32(0.01, 2.0)));
                 LocalRay::new(o, d)
             });
-            let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
-                [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
-            };
-            let packet = RaysX8 {
-                origin: lanes(&|r| r.origin),
-                dir: lanes(&|r| r.dir),
-                inv_dir: lanes(&|r| r.inv_dir),
-                dir_pos: sign.map(|s| s > 0.0),
-                t_lo: f32x8::ZERO,
-                t_hi: f32x8::splat(f32::INFINITY),
-            };
+            let packet = RaysX8::from_rays(&rays, f32x8::ZERO, f32x8::splat(f32::INFINITY));
             // Segment ends from the slab (so the face snapping is exercised) or arbitrary.
             let ends: [(f32, f32); LANES] = std::array::from_fn(|i| {
                 crate::intersect::frame::slab(&rays[i], lo, hi, -50.0, 50.0)

@@ -228,51 +228,26 @@ mod tests {
         iso: f32,
         seen: &mut [usize; 3],
     ) {
-        let lo = Vec3::new(
-            rng.range_f32(-40.0, 40.0),
-            rng.range_f32(-40.0, 40.0),
-            rng.range_f32(-40.0, 40.0),
-        );
-        let hi = lo
-            + Vec3::new(
-                rng.range_f32(0.3, 2.0),
-                rng.range_f32(0.3, 2.0),
-                rng.range_f32(0.3, 2.0),
-            );
+        let lo = rng.vec3(-40.0, 40.0);
+        let hi = lo + rng.vec3(0.3, 2.0);
         let corners: [T; 8] = std::array::from_fn(|_| corner(rng));
         let sign = [0, 1, 2].map(|_| if rng.below(2) == 0 { 1.0f32 } else { -1.0 });
         let far = rng.range_f32(1.0, 300.0);
         let eye = (lo + hi) * 0.5 - Vec3::from(sign) * far;
         let rays: [LocalRay; 8] = std::array::from_fn(|_| {
-            let target = lo
-                + (hi - lo)
-                    * Vec3::new(
-                        rng.range_f32(0.0, 1.0),
-                        rng.range_f32(0.0, 1.0),
-                        rng.range_f32(0.0, 1.0),
-                    );
+            let target = lo + (hi - lo) * rng.vec3(0.0, 1.0);
             let d = (target - eye).abs().max(Vec3::splat(1e-4)) * Vec3::from(sign);
             LocalRay::new(eye, d * rng.range_f32(0.2, 5.0))
         });
-        let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
-            [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
-        };
-        let packet = RaysX8 {
-            origin: lanes(&|r| r.origin),
-            dir: lanes(&|r| r.dir),
-            inv_dir: lanes(&|r| r.inv_dir),
-            dir_pos: sign.map(|s| s > 0.0),
-            t_lo: f32x8::ZERO,
-            t_hi: f32x8::splat(f32::INFINITY),
-        };
+        let packet = RaysX8::from_rays(&rays, f32x8::ZERO, f32x8::splat(f32::INFINITY));
         // Ends from the slab test (faces, the usual case) or cut inside the cell (a ray
         // that starts or stops there: peeled, shadow and clipped rays).
         let ends: [(f32, f32); 8] = std::array::from_fn(|i| {
             let (n, f) = slab(&rays[i], lo, hi, 0.0, f32::INFINITY).unwrap_or((1.0, 1.0));
             let cut = |t: f32| n + (f - n) * t;
             match rng.below(4) {
-                0 => (cut(rng.range_f32(0.0, 1.0)), f),
-                1 => (n, cut(rng.range_f32(0.0, 1.0))),
+                0 => (cut(rng.unit_f32()), f),
+                1 => (n, cut(rng.unit_f32())),
                 _ => (n, f),
             }
         });
