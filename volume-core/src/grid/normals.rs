@@ -238,3 +238,79 @@ pub fn sample_gradient_local<T: Voxel>(
     }
     (f0, g)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::Rng;
+    use crate::volume::{AxisCoords, Grid};
+    use std::sync::Arc;
+
+    /// Strictly increasing coordinates with random gaps in `[0.3, 2.3)`.
+    fn explicit_axis(rng: &mut Rng, n: usize) -> AxisCoords {
+        let mut x = rng.range_f32(-5.0, 5.0) as f64;
+        let coords: Vec<f64> = (0..n)
+            .map(|_| {
+                x += 0.3 + 2.0 * rng.unit_f64();
+                x
+            })
+            .collect();
+        AxisCoords::Explicit(Arc::from(coords))
+    }
+
+    /// The `f32` lanes of the interior cells against the `f64` central differences of the
+    /// general path, on random values and a rectilinear grid with uneven spacing.
+    fn interior_lanes_match_the_f64_path<T: Voxel>(scale: f64, seed: u64) {
+        let mut rng = Rng::new(seed);
+        let dims = [7, 6, 5];
+        let grid = Grid::new(
+            dims,
+            [
+                explicit_axis(&mut rng, dims[0]),
+                explicit_axis(&mut rng, dims[1]),
+                explicit_axis(&mut rng, dims[2]),
+            ],
+            None,
+        )
+        .unwrap();
+        let frame = TraversalFrame::new(&grid);
+        let voxels: Vec<T> = (0..grid.voxel_count())
+            .map(|_| T::from_f64(scale * rng.unit_f64()))
+            .collect();
+        let mut checked = 0;
+        for k in 1..dims[2] - 2 {
+            for j in 1..dims[1] - 2 {
+                for i in 1..dims[0] - 2 {
+                    for _ in 0..4 {
+                        let uvw = Vec3::new(rng.unit_f32(), rng.unit_f32(), rng.unit_f32());
+                        let cell = [i, j, k];
+                        let fast = gradient_interior_f32(&frame, &voxels, dims, cell, uvw)
+                            .expect("an interior cell of finite, varying values");
+                        let (slow, _) = central_differences(&frame, &voxels, dims, cell, uvw);
+                        let tol = 1e-5 * slow.abs().max_element().max(1e-3 * scale);
+                        assert!(
+                            (fast.as_dvec3() - slow).abs().max_element() <= tol,
+                            "cell {cell:?} at {uvw}: f32 {fast} against f64 {slow}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 4 * 4 * 3 * 2);
+        // The border cells take the general path.
+        assert!(
+            gradient_interior_f32(&frame, &voxels, dims, [0, 1, 1], Vec3::splat(0.5)).is_none()
+        );
+        assert!(
+            gradient_interior_f32(&frame, &voxels, dims, [1, 1, 3], Vec3::splat(0.5)).is_none()
+        );
+    }
+
+    #[test]
+    fn interior_gradients_in_lanes_equal_the_general_central_differences() {
+        interior_lanes_match_the_f64_path::<u8>(255.0, 1);
+        interior_lanes_match_the_f64_path::<i16>(3000.0, 2);
+        interior_lanes_match_the_f64_path::<f32>(1.0, 3);
+    }
+}
