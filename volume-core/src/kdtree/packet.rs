@@ -48,14 +48,55 @@ pub(crate) fn splat(x: f32) -> Lanes {
     [f32x8::splat(x); HALVES]
 }
 
-/// Bit `8h + i` set where lane `i` of half `h` satisfies `f`.
+/// Lane masks of `f` (all bits set where true), half by half.
 #[inline(always)]
-pub(crate) fn bits(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> u32 {
-    let mut m = 0;
-    for (h, (&x, &y)) in a.iter().zip(b).enumerate() {
-        m |= f(x, y).to_bitmask() << (8 * h);
+pub(crate) fn masks(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
+    map2(a, b, f)
+}
+
+/// Whether any lane of the masks `m` is set: the halves or-ed, one move-mask. The node step
+/// decides with this, not with [`mask_bits`]: combining the halves' move-masks into one
+/// integer (packs, shuffle, byte move-mask) lengthened the chain that every branch of a
+/// node step waits for, and its line was the hottest of the traversal in `perf`.
+#[inline(always)]
+pub(crate) fn any_lane(m: &Lanes) -> bool {
+    let mut o = m[0];
+    for &x in &m[1..] {
+        o |= x;
     }
-    m
+    o.any()
+}
+
+/// Bit `8h + i` set where lane `i` of half `h` of the masks `m` is set.
+#[inline(always)]
+pub(crate) fn mask_bits(m: &Lanes) -> u32 {
+    let mut b = 0;
+    for (h, x) in m.iter().enumerate() {
+        b |= x.to_bitmask() << (8 * h);
+    }
+    b
+}
+
+/// Which children of a node the packet enters, for the `active` rays (lane masks) with
+/// split distances `ts` over `[tn, tf]`: the near child alone when every active ray's
+/// split lies beyond its interval, the far child alone when before it, else both (module
+/// docs). One decision for the in-core and the out-of-core packet traversals.
+#[inline(always)]
+pub(crate) fn packet_visit(active: &Lanes, ts: &Lanes, tn: &Lanes, tf: &Lanes) -> Visit<Lanes> {
+    // "Every active ray is beyond" is "no active ray is not beyond" (`!` keeps NaN lanes
+    // on the not-beyond side, as the bit test did).
+    let not_beyond = map2(ts, tf, |s, f| !s.simd_gt(f));
+    if !any_lane(&map2(active, &not_beyond, |a, n| a & n)) {
+        return Visit::Near;
+    }
+    let not_before = map2(ts, tn, |s, n| !s.simd_lt(n));
+    if !any_lane(&map2(active, &not_before, |a, n| a & n)) {
+        return Visit::Far;
+    }
+    Visit::Both {
+        near_t_far: map2(tf, ts, f32x8::min),
+        far_t_near: map2(tn, ts, f32x8::max),
+    }
 }
 
 #[inline(always)]
@@ -300,8 +341,8 @@ impl<T: Voxel> KdTree<T> {
         let mut level = 0usize;
         'outer: loop {
             loop {
-                let active = bits(&tn, &tf, f32x8::simd_le);
-                if active == 0 {
+                let active = masks(&tn, &tf, f32x8::simd_le);
+                if !any_lane(&active) {
                     break;
                 }
                 if level == self.depth {
@@ -312,7 +353,7 @@ impl<T: Voxel> KdTree<T> {
                         self.dims,
                         cell,
                         &p,
-                        active,
+                        mask_bits(&active),
                         isos,
                         intersector,
                         stats,
@@ -326,22 +367,9 @@ impl<T: Voxel> KdTree<T> {
                 level += 1;
                 let a = ch.axis;
                 let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(ch.split) - o) * v);
-                // The packet enters one child when every active ray does (module docs).
-                let beyond = bits(&ts, &tf, f32x8::simd_gt);
-                let before = bits(&ts, &tn, f32x8::simd_lt);
-                let visit = if beyond & active == active {
-                    Visit::Near
-                } else if before & active == active {
-                    Visit::Far
-                } else {
-                    Visit::Both {
-                        near_t_far: map2(&tf, &ts, f32x8::min),
-                        far_t_near: map2(&tn, &ts, f32x8::max),
-                    }
-                };
                 let step = Step {
                     near_is_left: dir_pos[a],
-                    visit,
+                    visit: packet_visit(&active, &ts, &tn, &tf),
                 };
                 match ch.descend(step, level, &mut tf, stack, &mut sp) {
                     Some(next) => node = next,
@@ -355,7 +383,7 @@ impl<T: Voxel> KdTree<T> {
                 sp -= 1;
                 let e = stack[sp];
                 let e_tf = map2(&e.t_far, &best_v, f32x8::min);
-                if bits(&e.t_near, &e_tf, f32x8::simd_le) != 0 {
+                if any_lane(&masks(&e.t_near, &e_tf, f32x8::simd_le)) {
                     node = e.node;
                     level = e.level as usize;
                     tn = e.t_near;

@@ -48,8 +48,10 @@ use crate::intersect::{
     CellHit, CellIntersector, INLINE_ISOVALUES, Intersector, IsoSet, LocalRay, TraversalFrame,
     intersect_cell,
 };
-use crate::kdtree::packet::{Lanes, PacketRays, bits, map2, packet_leaf, splat};
-use crate::kdtree::step::{Step, Visit, ray_step, take_step};
+use crate::kdtree::packet::{
+    Lanes, PacketRays, any_lane, map2, mask_bits, masks, packet_leaf, packet_visit, splat,
+};
+use crate::kdtree::step::{Step, ray_step, take_step};
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, IsoScene, Stats};
@@ -1204,8 +1206,8 @@ impl<T: Voxel> OocScene<T> {
         let mut best_v = splat(f32::INFINITY);
         'outer: loop {
             loop {
-                let active = bits(&tn, &tf, f32x8::simd_le);
-                if active == 0 {
+                let active = masks(&tn, &tf, f32x8::simd_le);
+                if !any_lane(&active) {
                     break;
                 }
                 if level == end {
@@ -1233,7 +1235,7 @@ impl<T: Voxel> OocScene<T> {
                         block.dims,
                         cell,
                         &p,
-                        active,
+                        mask_bits(&active),
                         isos,
                         intersector,
                         stats,
@@ -1254,21 +1256,9 @@ impl<T: Voxel> OocScene<T> {
                     (f32x8::splat(ns.split) - o) * v
                 });
                 // The packet enters one child when every active ray does (as in-core).
-                let beyond = bits(&ts, &tf, f32x8::simd_gt);
-                let before = bits(&ts, &tn, f32x8::simd_lt);
-                let visit = if beyond & active == active {
-                    Visit::Near
-                } else if before & active == active {
-                    Visit::Far
-                } else {
-                    Visit::Both {
-                        near_t_far: map2(&tf, &ts, f32x8::min),
-                        far_t_near: map2(&tn, &ts, f32x8::max),
-                    }
-                };
                 let step = Step {
                     near_is_left: p.dir_pos[a],
-                    visit,
+                    visit: packet_visit(&active, &ts, &tn, &tf),
                 };
                 let (next, far) = take_step(step, false, true, true, ns.right_real, &mut tf);
                 if let Some((f, t_near, t_far)) = far {
@@ -1296,7 +1286,7 @@ impl<T: Voxel> OocScene<T> {
                 sp -= 1;
                 let e = stack[sp];
                 let e_tf = map2(&e.t_far, &best_v, f32x8::min);
-                if bits(&e.t_near, &e_tf, f32x8::simd_le) != 0 {
+                if any_lane(&masks(&e.t_near, &e_tf, f32x8::simd_le)) {
                     node = e.node;
                     level = e.level as usize;
                     h = e.h as usize;
