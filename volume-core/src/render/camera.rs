@@ -393,6 +393,62 @@ impl RayGen {
         meets
     }
 
+    /// Pixel coordinates `[x_min, x_max, y_min, y_max]` outside which no ray of
+    /// [`RayGen::ray_at`] meets `bounds` (in front of the eye): the projected box's corners,
+    /// padded by a pixel and a relative margin that dwarf the rays' rounding. `None` when
+    /// that cannot be said (a corner at or behind the eye plane of a pinhole, or an
+    /// unbounded box); an empty box gives an empty rectangle. The renderer skips the rays of
+    /// tiles outside it: they would all have missed `bounds`.
+    pub(crate) fn screen_rect(&self, bounds: &Aabb) -> Option<[f32; 4]> {
+        if bounds.is_empty() {
+            return Some([
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+            ]);
+        }
+        let mut rect = [
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        let corners = [bounds.min, bounds.max];
+        let (r, up, f) = (
+            self.right.as_dvec3(),
+            self.up.as_dvec3(),
+            self.forward.as_dvec3(),
+        );
+        for c in 0..8 {
+            let p = Vec3::new(corners[c & 1].x, corners[(c >> 1) & 1].y, corners[c >> 2].z);
+            let d = (p - self.eye).as_dvec3();
+            let (u, v) = if self.orthographic {
+                (d.dot(r), d.dot(up))
+            } else {
+                let z = d.dot(f);
+                // Near the eye plane the projection blows up: no bound.
+                if !(z > 1e-3 * d.length()) {
+                    return None;
+                }
+                (d.dot(r) / z, d.dot(up) / z)
+            };
+            // `column`/`row` inverted: u = (x·2/W − 1)·scale_u, v = (1 − y·2/H)·scale_v.
+            let x = (u / f64::from(self.scale_u) + 1.0) / f64::from(self.inv_w2);
+            let y = (1.0 - v / f64::from(self.scale_v)) / f64::from(self.inv_h2);
+            if !(x.is_finite() && y.is_finite()) {
+                return None;
+            }
+            rect[0] = rect[0].min(x as f32);
+            rect[1] = rect[1].max(x as f32);
+            rect[2] = rect[2].min(y as f32);
+            rect[3] = rect[3].max(y as f32);
+        }
+        let size = (2.0 / self.inv_w2).max(2.0 / self.inv_h2);
+        let pad = 1.0 + 1e-3 * size;
+        Some([rect[0] - pad, rect[1] + pad, rect[2] - pad, rect[3] + pad])
+    }
+
     /// The unit view direction.
     pub fn forward(&self) -> Vec3 {
         self.forward
@@ -419,6 +475,74 @@ mod tests {
         let u = (2.0 * (f64::from(i) + 0.5) / wf - 1.0) * tan * wf / hf;
         let v = (1.0 - 2.0 * (f64::from(j) + 0.5) / hf) * tan;
         (f + r * u + up * v).normalize().to_array()
+    }
+
+    /// Brute force over every pixel: no ray through a pixel centre outside
+    /// [`RayGen::screen_rect`] meets the box, for random boxes seen by random cameras of
+    /// both projections (boxes beside, in front of, around and behind the eye).
+    #[test]
+    fn no_ray_outside_the_screen_rect_meets_the_box() {
+        let mut rng = crate::math::rng::Rng::new(7);
+        let (w, h) = (48u32, 32u32);
+        let (mut outside, mut bounded, mut unbounded) = (0usize, 0, 0);
+        for case in 0..300 {
+            let projection = if case % 3 == 0 {
+                Projection::Orthographic
+            } else {
+                Projection::Pinhole
+            };
+            let cam = Camera {
+                eye: rng.vec3(-6.0, 6.0),
+                target: rng.vec3(-1.0, 1.0),
+                up: Vec3::new(0.1, 0.2, 1.0),
+                vfov_deg: rng.range_f32(20.0, 70.0),
+                projection,
+                ortho_height: None,
+            };
+            let c = rng.vec3(-3.0, 3.0);
+            let half = rng.vec3(0.05, 1.5);
+            let b = Aabb {
+                min: c - half,
+                max: c + half,
+            };
+            let raygen = RayGen::new(&cam, w, h);
+            let Some([x0, x1, y0, y1]) = raygen.screen_rect(&b) else {
+                // Only a pinhole with a corner at or behind its eye plane has no rectangle.
+                assert_eq!(projection, Projection::Pinhole);
+                unbounded += 1;
+                continue;
+            };
+            bounded += 1;
+            for j in 0..h {
+                for i in 0..w {
+                    let (x, y) = (i as f32 + 0.5, j as f32 + 0.5);
+                    if x < x0 || x > x1 || y < y0 || y > y1 {
+                        outside += 1;
+                        let ray = raygen.ray_at(x, y);
+                        assert!(
+                            b.intersect(&ray, 0.0, f32::INFINITY).is_none(),
+                            "case {case}: pixel ({i}, {j}) outside {:?} meets {b:?}",
+                            [x0, x1, y0, y1]
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            bounded > 150 && unbounded >= 5,
+            "{bounded} bounded, {unbounded} not"
+        );
+        assert!(outside > 100_000, "only {outside} pixels tested outside");
+        let cam = Camera {
+            eye: Vec3::new(0.0, -5.0, 1.0),
+            target: Vec3::ZERO,
+            up: Vec3::Z,
+            vfov_deg: 40.0,
+            projection: Projection::Pinhole,
+            ortho_height: None,
+        };
+        let empty = RayGen::new(&cam, w, h).screen_rect(&Aabb::EMPTY);
+        assert!(empty.is_some_and(|[x0, x1, y0, y1]| x0 > x1 && y0 > y1));
     }
 
     #[test]

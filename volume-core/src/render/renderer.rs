@@ -222,6 +222,9 @@ struct Ctx<'a, I> {
     surface_of: Vec<usize>,
     /// Where rays are traced: the scene's [`IsoScene::live_bounds`] for `isos`.
     bounds: Aabb,
+    /// Pixels outside this rectangle see no part of `bounds` ([`RayGen::screen_rect`]):
+    /// their tiles make no rays at all.
+    screen: Option<[f32; 4]>,
     /// Minimum distance past a transparent hit (absolute part; a relative part is added).
     peel_eps: f32,
     /// Offset of shadow-ray origins along the facing normal, and their `t_min`.
@@ -422,13 +425,16 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     } else {
         1.0
     };
+    let raygen = RayGen::new(camera, width, height);
+    // Rays are cut to where the surfaces can be; the offsets keep the data's scale.
+    let live = scene.live_bounds(&isos);
     let ctx = Ctx {
         settings,
         colorings,
-        raygen: RayGen::new(camera, width, height),
+        screen: raygen.screen_rect(&live),
+        raygen,
         shader: Shader::new(&settings.light),
-        // Rays are cut to where the surfaces can be; the offsets keep the data's scale.
-        bounds: scene.live_bounds(&isos),
+        bounds: live,
         isos,
         isovalues,
         surface_of,
@@ -517,17 +523,28 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
 
     // 1. Primary rays through the centre of each sample's pixel block (clipped to the
     //    image), cut to the bounds and the kept clip intervals; the first round's packet.
+    //    A tile whose samples all lie outside the bounds' screen rectangle makes none.
+    let centre = |s: u32, side: f32| (s as f32 * scale + ((s + 1) as f32 * scale).min(side)) * 0.5;
+    let (x_first, x_last) = (
+        centre(tile[0] * TILE, w),
+        centre(tile[0] * TILE + n_x - 1, w),
+    );
+    let (y_first, y_last) = (
+        centre(tile[1] * TILE, h),
+        centre(tile[1] * TILE + n_y - 1, h),
+    );
+    let off_screen = ctx
+        .screen
+        .is_some_and(|[x0, x1, y0, y1]| x_last < x0 || x_first > x1 || y_last < y0 || y_first > y1);
     let mut columns = [Vec3::ZERO; TILE as usize];
-    for (dx, c) in columns.iter_mut().enumerate().take(n_x as usize) {
-        let sx = tile[0] * TILE + dx as u32;
-        let x = (sx as f32 * scale + ((sx + 1) as f32 * scale).min(w)) * 0.5;
-        *c = ctx.raygen.column(x);
-    }
     let mut rows = [Vec3::ZERO; TILE as usize];
-    for (dy, r) in rows.iter_mut().enumerate().take(n_y as usize) {
-        let sy = tile[1] * TILE + dy as u32;
-        let y = (sy as f32 * scale + ((sy + 1) as f32 * scale).min(h)) * 0.5;
-        *r = ctx.raygen.row(y);
+    if !off_screen {
+        for (dx, c) in columns.iter_mut().enumerate().take(n_x as usize) {
+            *c = ctx.raygen.column(centre(tile[0] * TILE + dx as u32, w));
+        }
+        for (dy, r) in rows.iter_mut().enumerate().take(n_y as usize) {
+            *r = ctx.raygen.row(centre(tile[1] * TILE + dy as u32, h));
+        }
     }
     sc.tile_rays.resize(
         TILE as usize * TILE as usize,
@@ -538,7 +555,8 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let mut hi = [[0f32; TILE as usize]; TILE as usize];
     let mut meets = [0u32; TILE as usize];
     let tile_rows = sc.tile_rays.chunks_exact_mut(TILE as usize);
-    for (dy, (row, out)) in rows.iter().zip(tile_rows).enumerate().take(n_y as usize) {
+    let rows_in = if off_screen { 0 } else { n_y as usize };
+    for (dy, (row, out)) in rows.iter().zip(tile_rows).enumerate().take(rows_in) {
         let out: &mut [Ray; TILE as usize] = out.try_into().expect("a tile row");
         meets[dy] =
             ctx.raygen
@@ -601,7 +619,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         if n == 0 {
             break;
         }
-        sc.hits[..n].fill(None);
+        // No clearing of `sc.hits`: both paths write every one of its `n` entries.
         if settings.packets {
             scene.first_hit_packet_prepared(
                 &sc.rays[..n],

@@ -171,7 +171,8 @@ pub trait IsoScene: Sync {
             .is_some()
     }
 
-    /// First hits for a coherent packet of rays sharing `[t_min[i], t_max[i]]`.
+    /// First hits for a coherent packet of rays sharing `[t_min[i], t_max[i]]`, written to
+    /// every `out[i]` (`None` for a miss: the renderer does not clear `out` first).
     ///
     /// Structures with packet traversal (SIMD kd-tree packets, 16×16 BVH frusta) override
     /// this; the default traces the rays one by one.
