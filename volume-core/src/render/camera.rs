@@ -428,7 +428,7 @@ impl RayGen {
             } else {
                 let z = d.dot(f);
                 // Near the eye plane the projection blows up: no bound.
-                if !(z > 1e-3 * d.length()) {
+                if z.is_nan() || z <= 1e-3 * d.length() {
                     return None;
                 }
                 (d.dot(r) / z, d.dot(up) / z)
