@@ -267,7 +267,8 @@ impl TraversalFrame {
         let mut inv = [[0.0f32; N]; 3];
         let mut nonzero = u32::MAX;
         let mut positive = [0u32; 3];
-        let mut dead = [false; N];
+        // Bit `i`: ray `i` parallel to a slab it starts outside of.
+        let mut dead = 0u32;
         let empty = self.is_empty();
         for a in 0..3 {
             let upper = self.upper[a];
@@ -284,16 +285,19 @@ impl TraversalFrame {
                 let ta = (0.0 - o) * inv[a][i];
                 let tb = (upper - o) * inv[a][i];
                 let (near, far) = if v > 0.0 { (ta, tb) } else { (tb, ta) };
-                if v == 0.0 {
-                    dead[i] |= !(o >= 0.0 && o <= upper);
-                } else {
-                    lo[i] = lo[i].max(near);
-                    hi[i] = hi[i].min(far);
-                }
+                // Selects, not a branch, so that the loop stays in vector lanes; a zero
+                // component (rare) is judged by its origin in the scan below.
+                let parallel = v == 0.0;
+                lo[i] = if parallel { lo[i] } else { lo[i].max(near) };
+                hi[i] = if parallel { hi[i] } else { hi[i].min(far) };
             }
             for (i, &v) in dir[a][..n].iter().enumerate() {
                 if v == 0.0 {
                     nonzero &= !(1 << i);
+                    let o = org[a][i];
+                    if !(o >= 0.0 && o <= upper) {
+                        dead |= 1 << i;
+                    }
                 }
                 if v > 0.0 {
                     positive[a] |= 1 << i;
@@ -306,7 +310,7 @@ impl TraversalFrame {
                 dir: Vec3::new(dir[0][i], dir[1][i], dir[2][i]),
                 inv_dir: Vec3::new(inv[0][i], inv[1][i], inv[2][i]),
             };
-            let meets = !empty && !dead[i] && lo[i] <= hi[i];
+            let meets = !empty && dead >> i & 1 == 0 && lo[i] <= hi[i];
             (t0[i], t1[i]) = if meets {
                 (lo[i], hi[i])
             } else {
