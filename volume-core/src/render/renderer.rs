@@ -14,9 +14,10 @@
 //! once per tile (`RayGen::column`, `RayGen::row`), bit-identical to
 //! [`RayGen::ray_at`]; the same 8-wide pass cuts them to the scene's live bounds
 //! ([`IsoScene::live_bounds`]: for grids, the box of the kd-tree nodes that hold an isovalue,
-//! a cell wider; bit-identical to [`Aabb::intersect`]). Only samples whose ray meets them
-//! (and, when there are clip
-//! regions, keeps a clip interval, [`super::clip`]) get a per-ray state; the tile is painted
+//! a cell wider; bit-identical to [`Aabb::intersect`]); a tile outside the live box's
+//! projection (`RayGen::screen_rect`) makes no rays at all. Only samples whose ray meets
+//! them (and, when there are clip regions, keeps a clip interval, [`super::clip`]) get a
+//! per-ray state; the tile is painted
 //! with the background first and only those samples are composited over it. Then the tile runs
 //! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
 //! current interval, all together through [`IsoScene::first_hit_packet_prepared`] (the first round's
