@@ -9,7 +9,7 @@ use volume_core::intersect::{Intersector, IsoSet, corner_range, methods::Exact};
 use volume_core::kdtree::{KdTree, KdTreeConfig};
 use volume_core::math::Ray;
 use volume_core::math::rng::Rng;
-use volume_core::render::{CountStats, IsoScene, NoStats, Stats};
+use volume_core::render::{CountStats, IsoScene, MAX_PEELED, NoStats, Peel, PeeledHits, Stats};
 use volume_core::{AxisCoords, Grid, Voxel, VoxelBuffer};
 
 fn grid_for(dims: [usize; 3], rng: &mut Rng, explicit: bool) -> Grid {
@@ -474,10 +474,55 @@ fn sphere_distance_field_hits_within_bound() {
     assert!(counts.leaves_visited > 0 && counts.nodes_visited > 0);
 }
 
+/// The layers a packet collects as it goes on past transparent hits
+/// ([`IsoScene::peeled_hits_packet_prepared`]) against new single rays shot from past each
+/// one, as the renderer used to: the same hits, bit for bit, and the same `more`. Returns
+/// the layers seen beyond the first.
+fn peeled_equal_reshot<T: Voxel>(
+    scene: &GridScene<T>,
+    rays: &[Ray],
+    t0: &[f32],
+    t1: &[f32],
+    isos: &[f32],
+    rng: &mut Rng,
+) -> usize {
+    let peel = Peel {
+        opaque: u64::from(rng.below(1 << isos.len())),
+        max_hits: 1 + rng.below(MAX_PEELED as u32),
+        eps: [1e-4, 0.05][rng.below(2) as usize],
+    };
+    let mut out = vec![PeeledHits::NONE; rays.len()];
+    let prepared = scene.prepare(isos);
+    scene.peeled_hits_packet_prepared(rays, t0, t1, &prepared, &peel, &mut out, &mut NoStats);
+    let mut deeper = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let mut want = PeeledHits::NONE;
+        let mut t = t0[i];
+        while let Some(h) = scene.first_hit(ray, t, t1[i], isos, &mut NoStats) {
+            want.push(h);
+            if peel.ends_ray(h.surface) || want.n == peel.max_hits {
+                want.more = !peel.ends_ray(h.surface);
+                break;
+            }
+            t = peel.next_t(h.t);
+        }
+        assert_eq!(out[i], want, "ray {i} of {}: {ray:?}, {peel:?}", rays.len());
+        deeper += (want.n as usize).saturating_sub(1);
+    }
+    deeper
+}
+
 /// Packets (8 coherent rays from one eye, as a camera makes them) give exactly the
 /// single-ray hits, including groups the packet code must split (mixed direction signs).
-fn packets_equal_single<T: Voxel>(grid: &Grid, voxels: &[T], isos: &[f32], rng: &mut Rng) -> usize {
-    let mut hits = 0;
+/// The packets' peeled layers are checked too ([`peeled_equal_reshot`]). Returns the first
+/// hits and the deeper layers seen.
+fn packets_equal_single<T: Voxel>(
+    grid: &Grid,
+    voxels: &[T],
+    isos: &[f32],
+    rng: &mut Rng,
+) -> (usize, usize) {
+    let (mut hits, mut layers) = (0, 0);
     for unstored in [0, 2] {
         let scene = GridScene::new(
             grid,
@@ -525,9 +570,10 @@ fn packets_equal_single<T: Voxel>(grid: &Grid, voxels: &[T], isos: &[f32], rng: 
                 assert_eq!(out[i], single, "ray {i} of {n}: {:?}", rays[i]);
                 hits += usize::from(single.is_some());
             }
+            layers += peeled_equal_reshot(&scene, &rays, &t0, &t1, isos, rng);
         }
     }
-    hits
+    (hits, layers)
 }
 
 proptest! {
@@ -551,8 +597,9 @@ fn packet_comparison_sees_hits() {
     let voxels: Vec<u8> = (0..dims.iter().product::<usize>())
         .map(|_| (rng.below(256)) as u8)
         .collect();
-    let hits = packets_equal_single(&grid, &voxels, &[100.5, 200.0], &mut rng);
+    let (hits, layers) = packets_equal_single(&grid, &voxels, &[100.5, 200.0], &mut rng);
     assert!(hits > 200, "{hits}");
+    assert!(layers > 200, "{layers}");
 }
 
 /// Packets of 16 rays whose halves differ in direction signs (the eye looks across a
@@ -576,7 +623,7 @@ fn packet_groups_with_mixed_signs_equal_single_rays() {
     let b = scene.world_bounds();
     let c = (b.min + b.max) * 0.5;
     let ext = b.max - b.min;
-    let (mut hits, mut total) = (0, 0);
+    let (mut hits, mut total, mut layers) = (0, 0, 0);
     for trial in 0..200 {
         let eye = c + Vec3::new(rng.range_f32(-0.3, 0.3), -1.5, rng.range_f32(-0.3, 0.3)) * ext;
         // Targets left and right of the eye's x (mixed halves) or all on one side.
@@ -602,8 +649,10 @@ fn packet_groups_with_mixed_signs_equal_single_rays() {
             hits += usize::from(single.is_some());
             total += 1;
         }
+        layers += peeled_equal_reshot(&scene, &rays, &t0, &t1, &[0.25, -0.3], &mut rng);
     }
     assert!(hits > total / 2, "{hits} of {total}");
+    assert!(layers > total / 2, "{layers} of {total}");
 }
 
 /// A blob in one corner of `dims` (distance to a point near the low corner, plus noise),

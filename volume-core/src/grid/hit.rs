@@ -8,9 +8,10 @@ use glam::Vec3;
 
 use super::normals::normal_at;
 use crate::intersect::{CellHit, CellIntersector, LocalRay, TraversalFrame};
+use crate::kdtree::packet::LaneNext;
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
 use crate::math::Ray;
-use crate::render::{Hit, Stats};
+use crate::render::{Hit, MAX_PEELED, Peel, Stats};
 use crate::voxel::Voxel;
 
 /// The voxel block a cell hit lies in (the grid's, or an out-of-core treelet's), which its
@@ -91,6 +92,39 @@ pub fn first_hit_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: Stats>(
     ))
 }
 
+/// Up to [`PACKET_WIDTH`] world rays in traversal units, clipped to the traversal box.
+pub(crate) struct LocalPacket {
+    pub n: usize,
+    pub local: [LocalRay; PACKET_WIDTH],
+    pub t0: [f32; PACKET_WIDTH],
+    pub t1: [f32; PACKET_WIDTH],
+    /// The rays share direction signs and have no zero component: one packet.
+    pub one_packet: bool,
+}
+
+impl LocalPacket {
+    #[inline(always)]
+    pub(crate) fn new(frame: &TraversalFrame, rays: &[Ray], t_min: &[f32], t_max: &[f32]) -> Self {
+        let n = rays.len().min(PACKET_WIDTH);
+        let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
+        let mut t0 = [f32::INFINITY; PACKET_WIDTH];
+        let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
+        let (nonzero, positive) =
+            frame.to_local_clipped(rays, t_min, t_max, &mut local, &mut t0, &mut t1);
+        let lanes = (1u32 << n) - 1;
+        // `packet_compatible` from the lane masks: no zero component, one sign per axis.
+        let one_packet =
+            n > 0 && nonzero == lanes && positive.iter().all(|&p| p == 0 || p == lanes);
+        Self {
+            n,
+            local,
+            t0,
+            t1,
+            one_packet,
+        }
+    }
+}
+
 /// [`crate::render::IsoScene::first_hit_packet_prepared`] of `scene` for up to
 /// [`PACKET_WIDTH`] rays with a static intersector: the rays in traversal units and clipped,
 /// then one packet ([`CellTrace::cell_hits_packet`]) when their directions allow it, else
@@ -107,21 +141,13 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
     out: &mut [Option<Hit>],
     stats: &mut S,
 ) {
-    let n = rays.len().min(PACKET_WIDTH);
-    let mut local = [LocalRay::new(Vec3::ZERO, Vec3::ZERO); PACKET_WIDTH];
-    let mut t0 = [f32::INFINITY; PACKET_WIDTH];
-    let mut t1 = [f32::NEG_INFINITY; PACKET_WIDTH];
+    let lp = LocalPacket::new(scene.frame(), rays, t_min, t_max);
+    let (n, local, t0, t1) = (lp.n, &lp.local, &lp.t0, &lp.t1);
     for _ in 0..n {
         stats.ray();
     }
-    let (nonzero, positive) = scene
-        .frame()
-        .to_local_clipped(rays, t_min, t_max, &mut local, &mut t0, &mut t1);
-    let lanes = (1u32 << n) - 1;
-    // `packet_compatible` from the lane masks: no zero component, one sign per axis.
-    let one_packet = n > 0 && nonzero == lanes && positive.iter().all(|&p| p == 0 || p == lanes);
     let mut cell_hits = [None; PACKET_WIDTH];
-    if one_packet {
+    if lp.one_packet {
         scene.cell_hits_packet(
             &local[..n],
             &t0[..n],
@@ -170,6 +196,70 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
                 h,
             )
         });
+    }
+}
+
+/// The layers each lane of a packet collects as it goes on past transparent hits
+/// ([`crate::render::IsoScene::peeled_hits_packet_prepared`]), in order of distance.
+pub(crate) struct LaneLayers {
+    peel: Peel,
+    cap: usize,
+    n: [usize; PACKET_WIDTH],
+    hits: [[CellHit; MAX_PEELED]; PACKET_WIDTH],
+}
+
+impl LaneLayers {
+    pub(crate) fn new(peel: &Peel) -> Self {
+        let none = CellHit {
+            t: f32::INFINITY,
+            surface: 0,
+            cell: [0; 3],
+        };
+        Self {
+            peel: *peel,
+            cap: peel.cap(),
+            n: [0; PACKET_WIDTH],
+            hits: [[none; MAX_PEELED]; PACKET_WIDTH],
+        }
+    }
+
+    /// Takes lane `k`'s hit: the lane stops at its last layer when that ends the ray or
+    /// the layers are full, else goes on from [`Peel::next_t`] of it. Hits come in order of
+    /// distance, but for a ray through a cell edge that two visited cells share: sorted in.
+    #[inline]
+    pub(crate) fn add(&mut self, k: usize, hit: CellHit) -> LaneNext {
+        let (list, n) = (&mut self.hits[k], &mut self.n[k]);
+        let mut i = *n;
+        while i > 0 && list[i - 1].t > hit.t {
+            i -= 1;
+        }
+        if i < self.cap {
+            let end = (*n + 1).min(self.cap);
+            list.copy_within(i..end - 1, i + 1);
+            list[i] = hit;
+            *n = if self.peel.ends_ray(hit.surface) {
+                i + 1
+            } else {
+                end
+            };
+        }
+        let last = list[*n - 1];
+        if *n == self.cap || self.peel.ends_ray(last.surface) {
+            LaneNext::Stop(last.t)
+        } else {
+            LaneNext::GoOnFrom(self.peel.next_t(last.t))
+        }
+    }
+
+    pub(crate) fn of(&self, k: usize) -> &[CellHit] {
+        &self.hits[k][..self.n[k]]
+    }
+
+    /// Whether lane `k` may hit more past its last layer: the layers are full and the
+    /// last one does not end the ray.
+    pub(crate) fn more(&self, k: usize) -> bool {
+        let n = self.n[k];
+        n == self.cap && !self.peel.ends_ray(self.hits[k][n - 1].surface)
     }
 }
 

@@ -16,13 +16,16 @@ use std::time::Duration;
 use glam::Vec3;
 
 use super::dda::DdaScene;
-use super::hit::{CellBlock, CellTrace, first_hit_with, first_hits_packet_with};
+use super::hit::{
+    CellBlock, CellTrace, LaneLayers, LocalPacket, first_hit_with, first_hits_packet_with, make_hit,
+};
 use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, with_packet_stack};
+use crate::kdtree::packet::LaneNext;
+use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, packet_compatible, with_packet_stack};
 use crate::math::{Aabb, Ray};
-use crate::render::{Hit, HitField, IsoScene, SceneVisitor, Stats};
+use crate::render::{Hit, HitField, IsoScene, Peel, PeeledHits, SceneVisitor, Stats};
 use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
 use crate::voxel::Voxel;
 
@@ -325,6 +328,111 @@ impl<T: Voxel> IsoScene for GridScene<T> {
             }
         });
     }
+
+    /// The packets go on past transparent hits: a lane that hits a transparent layer has
+    /// its cell tested again from [`Peel::next_t`] and walks on with its packet through the
+    /// cells that follow ([`KdTree`]'s packet walk), instead of a new ray descending from
+    /// the root. The layers are the ones new rays would find (tested).
+    fn peeled_hits_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        peel: &Peel,
+        out: &mut [PeeledHits],
+        stats: &mut S,
+    ) {
+        crate::dispatch_intersector!(self.intersector, c => {
+            for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                let base = start * PACKET_WIDTH;
+                self.peeled_packet(chunk, &t_min[base..], &t_max[base..], isos, c, peel, &mut out[base..], stats);
+            }
+        });
+    }
+}
+
+impl<T: Voxel> GridScene<T> {
+    /// [`IsoScene::peeled_hits_packet_prepared`] for up to [`PACKET_WIDTH`] rays with a
+    /// static intersector; rays that cannot travel as one packet go as groups of 8 or one by
+    /// one, as in [`first_hits_packet_with`].
+    #[allow(clippy::too_many_arguments)]
+    fn peeled_packet<C: CellIntersector, S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        peel: &Peel,
+        out: &mut [PeeledHits],
+        stats: &mut S,
+    ) {
+        let lp = LocalPacket::new(&self.frame, rays, t_min, t_max);
+        let (n, local, t0, t1) = (lp.n, &lp.local, &lp.t0, &lp.t1);
+        for _ in 0..n {
+            stats.ray();
+        }
+        let mut layers = LaneLayers::new(peel);
+        let voxels = self.voxels.as_slice();
+        let walk = |from: usize, to: usize, layers: &mut LaneLayers, stats: &mut S| {
+            with_packet_stack(|stack| {
+                self.tree.walk_packet_in(
+                    stack,
+                    &self.frame,
+                    voxels,
+                    &local[from..to],
+                    &t0[from..to],
+                    &t1[from..to],
+                    isos,
+                    intersector,
+                    stats,
+                    |k, hit| layers.add(from + k, hit),
+                );
+            });
+        };
+        if lp.one_packet {
+            walk(0, n, &mut layers, stats);
+        } else {
+            for from in (0..n).step_by(8) {
+                let to = (from + 8).min(n);
+                if packet_compatible(&local[from..to]) {
+                    walk(from, to, &mut layers, stats);
+                    continue;
+                }
+                // One by one: the ray again from past each transparent layer.
+                for i in from..to {
+                    let mut t_from = t0[i];
+                    while t_from <= t1[i] {
+                        let Some(h) =
+                            self.cell_hit_with(&local[i], t_from, t1[i], isos, intersector, stats)
+                        else {
+                            break;
+                        };
+                        match layers.add(i, h) {
+                            LaneNext::Stop(_) => break,
+                            LaneNext::GoOnFrom(t) => t_from = t,
+                        }
+                    }
+                }
+            }
+        }
+        let block = self.block();
+        for (i, o) in out[..n].iter_mut().enumerate() {
+            *o = PeeledHits::NONE;
+            for &h in layers.of(i) {
+                o.push(make_hit(
+                    block.frame,
+                    block.voxels,
+                    block.dims,
+                    &local[i],
+                    &rays[i],
+                    h,
+                ));
+            }
+            o.more = layers.more(i);
+        }
+    }
 }
 
 crate::voxel_enum! {
@@ -500,6 +608,21 @@ impl IsoScene for AnyGridScene {
     ) {
         crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
             s.first_hit_packet_prepared(rays, t_min, t_max, i, out, stats);
+        }; else isovalues_of_another_type());
+    }
+
+    fn peeled_hits_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &AnyIsoSet,
+        peel: &Peel,
+        out: &mut [PeeledHits],
+        stats: &mut S,
+    ) {
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.peeled_hits_packet_prepared(rays, t_min, t_max, i, peel, out, stats);
         }; else isovalues_of_another_type());
     }
 }

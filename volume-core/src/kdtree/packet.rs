@@ -202,13 +202,27 @@ impl PacketRays {
     }
 }
 
+/// What a packet traversal does with a lane after a cell hit ([`packet_leaf`]'s `on_hit`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum LaneNext {
+    /// The lane needs no hit beyond `t`: the traversal cuts it there (a first-hit search
+    /// passes the hit's own distance).
+    Stop(f32),
+    /// The lane goes on past the hit (a transparent layer, [`crate::render::Peel`]): its
+    /// cell tests start from `t` from now on, this cell's again first.
+    GoOnFrom(f32),
+}
+
 /// The leaf step of a packet traversal, written once for the in-core and out-of-core trees:
 /// tests cell `cell` of the block (`frame`, `voxels`, `dims`) against the `active` rays (bit
-/// `k` = ray `k`) in `f32x8` lanes, each over its whole clipped interval as the single-ray
+/// `k` = ray `k`) in `f32x8` lanes, each over its clipped interval as the single-ray
 /// traversal does (lanes equal the scalar test bit for bit, [`crate::intersect::packet`]);
 /// calls `on_hit(k, hit)` for a hit nearer than `best[k]` and returns the updated `best` as
-/// lanes. Even one active ray of a half takes the lanes: measured against a scalar test for
-/// halves of one or two rays, the lanes were no slower (docs/benchmarks.md).
+/// lanes. A lane that goes on past its hit ([`LaneNext::GoOnFrom`]) has its interval start
+/// moved there and the cell tested again for it, so its next hit is the one a new ray from
+/// that distance would find. Even one active ray of a half takes the lanes: measured against
+/// a scalar test for halves of one or two rays, the lanes were no slower
+/// (docs/benchmarks.md).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
@@ -216,13 +230,13 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     voxels: &[T],
     dims: [usize; 3],
     cell: [usize; 3],
-    p: &PacketRays,
+    p: &mut PacketRays,
     active: u32,
     isos: &IsoSet<T>,
     intersector: C,
     stats: &mut S,
     best: &mut [f32; PACKET_WIDTH],
-    mut on_hit: impl FnMut(usize, CellHit),
+    mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
 ) -> Lanes {
     for _ in 0..active.count_ones() {
         stats.leaf();
@@ -230,28 +244,34 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     let Some(pc) = PreparedCell::load(frame, voxels, dims, cell, isos) else {
         return lanes(best);
     };
-    for (h, half_rays) in p.leaf.iter().enumerate() {
-        let half = (active >> (8 * h)) & 0xff;
-        if half == 0 {
-            continue;
-        }
-        let hits = intersect_prepared_cell_x8(&pc, half_rays, half, isos, intersector, stats);
-        let mut b = hits.mask;
-        while b != 0 {
-            let i = b.trailing_zeros() as usize;
-            b &= b - 1;
-            let k = 8 * h + i;
-            if hits.t[i] < best[k] {
-                best[k] = hits.t[i];
-                on_hit(
-                    k,
-                    CellHit {
+    for (h, half_rays) in p.leaf.iter_mut().enumerate() {
+        let mut test = (active >> (8 * h)) & 0xff;
+        while test != 0 {
+            let hits = intersect_prepared_cell_x8(&pc, half_rays, test, isos, intersector, stats);
+            let mut again = 0u32;
+            let mut b = hits.mask;
+            while b != 0 {
+                let i = b.trailing_zeros() as usize;
+                b &= b - 1;
+                let k = 8 * h + i;
+                if hits.t[i] < best[k] {
+                    let hit = CellHit {
                         t: hits.t[i],
                         surface: hits.surface[i],
                         cell,
-                    },
-                );
+                    };
+                    match on_hit(k, hit) {
+                        LaneNext::Stop(t) => best[k] = t,
+                        LaneNext::GoOnFrom(t) => {
+                            let mut t_lo = half_rays.t_lo.to_array();
+                            t_lo[i] = t;
+                            half_rays.t_lo = f32x8::new(t_lo);
+                            again |= 1 << i;
+                        }
+                    }
+                }
             }
+            test = again;
         }
     }
     lanes(best)
@@ -302,11 +322,48 @@ impl<T: Voxel> KdTree<T> {
         stats: &mut S,
         out: &mut [Option<CellHit>],
     ) {
-        let stack = &mut stack.entries;
         let n = rays.len().min(PACKET_WIDTH);
         for o in &mut out[..n] {
             *o = None;
         }
+        self.walk_packet_in(
+            stack,
+            frame,
+            voxels,
+            rays,
+            t0,
+            t1,
+            isos,
+            intersector,
+            stats,
+            |k, hit| {
+                out[k] = Some(hit);
+                LaneNext::Stop(hit.t)
+            },
+        );
+    }
+
+    /// The packet walk of [`KdTree::first_hit_packet_in`], handing every cell hit nearer than
+    /// its lane's cut to `on_hit`, which says whether the lane stops there or goes on past
+    /// it ([`packet_leaf`]): a first-hit search, or one that collects a ray's transparent
+    /// layers as it goes ([`crate::render::IsoScene::peeled_hits_packet_prepared`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn walk_packet_in<C: CellIntersector, S: Stats>(
+        &self,
+        stack: &mut PacketStack,
+        frame: &TraversalFrame,
+        voxels: &[T],
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+        mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
+    ) {
+        let stack = &mut stack.entries;
+        let n = rays.len().min(PACKET_WIDTH);
         if self.levels.is_empty() || isos.is_empty() || n == 0 {
             return;
         }
@@ -314,16 +371,22 @@ impl<T: Voxel> KdTree<T> {
         if self.depth >= INLINE_STACK {
             // Absurdly deep trees (> 2^64 cells): trace one by one.
             for i in 0..n {
-                out[i] = self.first_hit(
+                let mut t_from = t0[i];
+                while let Some(hit) = self.first_hit(
                     frame,
                     voxels,
                     &rays[i],
-                    t0[i],
+                    t_from,
                     t1[i],
                     isos,
                     intersector,
                     stats,
-                );
+                ) {
+                    match on_hit(i, hit) {
+                        LaneNext::Stop(_) => break,
+                        LaneNext::GoOnFrom(t) => t_from = t,
+                    }
+                }
             }
             return;
         }
@@ -331,8 +394,7 @@ impl<T: Voxel> KdTree<T> {
         if self.stored > 0 && !isos.any_in(self.ranges[0][0], self.ranges[0][1]) {
             return;
         }
-        let p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
-        let (org, inv, dir_pos) = (&p.org, &p.inv, p.dir_pos);
+        let mut p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
         let (mut tn, mut tf) = (p.t_near, p.t_far);
         let mut best = [f32::INFINITY; PACKET_WIDTH];
         let mut best_v = splat(f32::INFINITY);
@@ -352,13 +414,13 @@ impl<T: Voxel> KdTree<T> {
                         voxels,
                         self.dims,
                         cell,
-                        &p,
+                        &mut p,
                         mask_bits(&active),
                         isos,
                         intersector,
                         stats,
                         &mut best,
-                        |k, hit| out[k] = Some(hit),
+                        &mut on_hit,
                     );
                     break;
                 }
@@ -366,9 +428,11 @@ impl<T: Voxel> KdTree<T> {
                 let ch = self.children(level, node, isos);
                 level += 1;
                 let a = ch.axis;
-                let ts = map2(&org[a], &inv[a], |o, v| (f32x8::splat(ch.split) - o) * v);
+                let ts = map2(&p.org[a], &p.inv[a], |o, v| {
+                    (f32x8::splat(ch.split) - o) * v
+                });
                 let step = Step {
-                    near_is_left: dir_pos[a],
+                    near_is_left: p.dir_pos[a],
                     visit: packet_visit(&active, &ts, &tn, &tf),
                 };
                 match ch.descend(step, level, &mut tf, stack, &mut sp) {

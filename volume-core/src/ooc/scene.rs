@@ -49,7 +49,7 @@ use crate::intersect::{
     intersect_cell,
 };
 use crate::kdtree::packet::{
-    Lanes, PacketRays, any_lane, map2, mask_bits, masks, packet_leaf, packet_visit, splat,
+    LaneNext, Lanes, PacketRays, any_lane, map2, mask_bits, masks, packet_leaf, packet_visit, splat,
 };
 use crate::kdtree::step::{Step, ray_step, take_step};
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
@@ -1194,7 +1194,7 @@ impl<T: Voxel> OocScene<T> {
         };
         let n = rays.len().min(PACKET_WIDTH);
         debug_assert!(packet_compatible(&rays[..n]));
-        let p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
+        let mut p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
         let (mut tn, mut tf) = (p.t_near, p.t_far);
         let (mut tl, mut ti) = (0usize, 0u64);
         let mut end = layout.level(0).end;
@@ -1234,13 +1234,16 @@ impl<T: Voxel> OocScene<T> {
                         block.voxels,
                         block.dims,
                         cell,
-                        &p,
+                        &mut p,
                         mask_bits(&active),
                         isos,
                         intersector,
                         stats,
                         &mut best,
-                        |k, hit| out[k] = Some((hit, block)),
+                        |k, hit| {
+                            out[k] = Some((hit, block));
+                            LaneNext::Stop(hit.t)
+                        },
                     );
                     break;
                 }

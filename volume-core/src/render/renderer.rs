@@ -22,10 +22,13 @@
 //! in *rounds*: every still-active ray is traced from its current `t_from` to the end of its
 //! current interval, all together through [`IsoScene::first_hit_packet_prepared`] (the first round's
 //! packet is built while the rays are generated). A hit is shaded and composited front to
-//! back; an opaque hit (or the layer limit) ends the ray, a transparent one re-shoots the
-//! same ray with the minimum distance just past the hit (thesis seed 004 §8.6, "transparent
-//! depth peeling": the packet is re-used with a per-ray minimum distance). A miss moves the
-//! ray to its next kept interval. A round's shadow rays (one per lit hit and kept clip
+//! back; an opaque hit (or the layer limit) ends the ray, a transparent one lets it go on
+//! from just past the hit (thesis seed 004 §8.6, "transparent depth peeling"). The scene
+//! returns several layers per ray at once where its traversal can go on past a hit
+//! ([`IsoScene::peeled_hits_packet_prepared`]: the kd-tree packets carry a lane on through
+//! the following cells instead of a new ray descending from the root); otherwise the next
+//! round shoots the ray again with its minimum distance past the hit. A ray with nothing
+//! more in its interval moves to its next kept interval. A round's shadow rays (one per lit hit and kept clip
 //! interval) are traced together as one packet after its hits are found (they share the
 //! light's direction, or aim at one point light: coherent), then the hits are shaded. The
 //! isovalues are prepared once per call ([`IsoScene::prepare`]).
@@ -49,7 +52,10 @@ use crate::math::{Aabb, Interval, Ray};
 use crate::render::camera::{Camera, RayGen};
 use crate::render::clip::kept_intervals;
 use crate::render::colormap::Colormap;
-use crate::render::scene::{CountStats, Hit, HitField, IsoScene, NoStats, Stats, TraversalCounts};
+use crate::render::scene::{
+    CountStats, Hit, HitField, IsoScene, MAX_PEELED, NoStats, Peel, PeeledHits, Stats,
+    TraversalCounts,
+};
 use crate::render::settings::{PixelRegion, RenderSettings};
 use crate::render::shade::Shader;
 
@@ -64,7 +70,8 @@ const OPAQUE_TRANSMITTANCE: f32 = 1.0 / 1024.0;
 pub struct RayCounts {
     /// One per sample (pixel at full resolution), whether or not it meets the volume.
     pub primary: u64,
-    /// Re-shot segments past transparent hits.
+    /// Transparent hits a ray went on past (within the scene's traversal, or as a new
+    /// segment shot from past the hit).
     pub transparency: u64,
     /// Shadow rays.
     pub shadow: u64,
@@ -226,8 +233,12 @@ struct Ctx<'a, I> {
     /// Pixels outside this rectangle see no part of `bounds` ([`RayGen::screen_rect`]):
     /// their tiles make no rays at all.
     screen: Option<[f32; 4]>,
-    /// Minimum distance past a transparent hit (absolute part; a relative part is added).
-    peel_eps: f32,
+    /// How rays go on past transparent hits: the surfaces that end a ray, the hits per
+    /// traversal call and the distance past a hit where the next is sought.
+    peel: Peel,
+    /// Some surface lets rays through and more than one layer is composited: rounds ask the
+    /// scene for peeled layers, not just first hits.
+    peels: bool,
     /// Offset of shadow-ray origins along the facing normal, and their `t_min`.
     shadow_eps: f32,
     scale: u32,
@@ -257,6 +268,19 @@ struct RayState {
 }
 
 impl RayState {
+    /// Moves on to the next kept interval (nothing more to find in this one); false when
+    /// there is none, and the sample is done.
+    fn next_interval(&mut self, intervals: &[Interval]) -> bool {
+        self.iv += 1;
+        if self.iv < self.iv_end {
+            self.t_from = intervals[self.iv as usize].lo;
+            true
+        } else {
+            self.done = true;
+            false
+        }
+    }
+
     /// A sample that starts at `t_from` in kept intervals `iv..iv_end`, nothing composited.
     fn start(iv: u32, iv_end: u32, t_from: f32, pos: u8) -> Self {
         Self {
@@ -291,7 +315,9 @@ struct Scratch {
     rays: Vec<Ray>,
     t_min: Vec<f32>,
     t_max: Vec<f32>,
-    hits: Vec<Option<Hit>>,
+    hits: Vec<PeeledHits>,
+    /// First hits, when no surface lets rays through ([`Ctx::peels`] false).
+    first: Vec<Option<Hit>>,
     /// The round's hits to shade, and their shadow rays (one per kept interval) as a packet.
     shade: Vec<PendingShade>,
     shadow_rays: Vec<Ray>,
@@ -317,6 +343,10 @@ struct PendingShade {
     to_light: Vec3,
     /// 1 when lit, 0 in shadow.
     lit: f32,
+    /// The ray's last hit of the round, and whether the ray may hit more past it
+    /// ([`PeeledHits::more`]).
+    last: bool,
+    more: bool,
 }
 
 /// Statistics and ray counts of a part of the frame.
@@ -364,7 +394,8 @@ impl Scratch {
             self.rays.resize(SLOTS, Ray::new(Vec3::ZERO, Vec3::ONE));
             self.t_min.resize(SLOTS, 0.0);
             self.t_max.resize(SLOTS, 0.0);
-            self.hits.resize(SLOTS, None);
+            self.hits.resize(SLOTS, PeeledHits::NONE);
+            self.first.resize(SLOTS, None);
         }
     }
 }
@@ -429,6 +460,9 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let raygen = RayGen::new(camera, width, height);
     // Rays are cut to where the surfaces can be; the offsets keep the data's scale.
     let live = scene.live_bounds(&isos);
+    let opaque = opaque_mask(settings, &surface_of);
+    let peels = settings.max_layers > 1
+        && (surface_of.len() > 64 || (opaque.count_ones() as usize) < surface_of.len());
     let ctx = Ctx {
         settings,
         colorings,
@@ -439,7 +473,12 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         isos,
         isovalues,
         surface_of,
-        peel_eps: diag * 1e-5,
+        peel: Peel {
+            opaque,
+            max_hits: settings.max_layers.clamp(1, MAX_PEELED as u32),
+            eps: diag * 1e-5,
+        },
+        peels,
         shadow_eps: diag * 2e-4,
         scale,
         samples,
@@ -502,6 +541,22 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
 }
 
 #[inline]
+/// Bit `s` set where a hit on isovalue `s` ends a ray ([`Peel::opaque`]): its surface lets
+/// less than [`OPAQUE_TRANSMITTANCE`] through, or it maps to none.
+fn opaque_mask(settings: &RenderSettings, surface_of: &[usize]) -> u64 {
+    let mut mask = 0u64;
+    for (iso, &s) in surface_of.iter().enumerate().take(64) {
+        let alpha = settings
+            .surfaces
+            .get(s)
+            .map_or(1.0, |x| x.opacity.clamp(0.0, 1.0));
+        if 1.0 - alpha <= OPAQUE_TRANSMITTANCE {
+            mask |= 1 << iso;
+        }
+    }
+    mask
+}
+
 fn to_u8(c: f32) -> u8 {
     (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
@@ -614,31 +669,46 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let mut first_round = true;
     loop {
         if !first_round {
-            n = next_round(sc, n_states, &mut tally.rays);
+            n = next_round(sc, n_states);
         }
         first_round = false;
         if n == 0 {
             break;
         }
-        // No clearing of `sc.hits`: both paths write every one of its `n` entries.
-        if settings.packets {
+        // No clearing of `sc.hits`: every path writes each of its `n` entries.
+        if settings.packets && ctx.peels {
+            scene.peeled_hits_packet_prepared(
+                &sc.rays[..n],
+                &sc.t_min[..n],
+                &sc.t_max[..n],
+                &ctx.isos,
+                &ctx.peel,
+                &mut sc.hits[..n],
+                &mut tally.stats,
+            );
+        } else if settings.packets {
+            // Every surface opaque or one layer: first hits are all there is to find.
             scene.first_hit_packet_prepared(
                 &sc.rays[..n],
                 &sc.t_min[..n],
                 &sc.t_max[..n],
                 &ctx.isos,
-                &mut sc.hits[..n],
+                &mut sc.first[..n],
                 &mut tally.stats,
             );
+            for (o, &h) in sc.hits[..n].iter_mut().zip(&sc.first[..n]) {
+                o.set_first(h, &ctx.peel);
+            }
         } else {
             for k in 0..n {
-                sc.hits[k] = scene.first_hit_prepared(
+                let hit = scene.first_hit_prepared(
                     &sc.rays[k],
                     sc.t_min[k],
                     sc.t_max[k],
                     &ctx.isos,
                     &mut tally.stats,
                 );
+                sc.hits[k].set_first(hit, &ctx.peel);
             }
         }
         let mut live = 0usize;
@@ -652,54 +722,53 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         for k in 0..n {
             let idx = sc.active[k] as usize;
             let st = &mut sc.states[idx];
-            let Some(hit) = sc.hits[k] else {
-                st.iv += 1;
-                if st.iv < st.iv_end {
-                    st.t_from = sc.intervals[st.iv as usize].lo;
-                    live += 1;
-                } else {
+            let found = &sc.hits[k];
+            if found.n == 0 {
+                live += usize::from(st.next_interval(&sc.intervals));
+                continue;
+            }
+            for (j, &hit) in found.hits().iter().enumerate() {
+                let Some(&surface) = ctx.surface_of.get(hit.surface as usize) else {
+                    // A scene reporting a surface we did not ask for: stop, do not guess.
                     st.done = true;
-                }
-                continue;
-            };
-            let Some(&surface) = ctx.surface_of.get(hit.surface as usize) else {
-                // A scene reporting a surface we did not ask for: stop, do not guess.
-                st.done = true;
-                continue;
-            };
-            let ray = &sc.rays[k];
-            let p = ray.at(hit.t);
-            let normal = Shader::facing(hit.normal, ray.dir);
-            let (to_light, light_dist) = ctx.shader.light_dir(p, ray.dir);
-            let owner = sc.shade.len() as u32;
-            sc.shade.push(PendingShade {
-                k: k as u32,
-                surface: surface as u32,
-                cell: hit.cell,
-                t: hit.t,
-                normal,
-                to_light,
-                lit: 1.0,
-            });
-            if SHADOWS && Shader::lambert(normal, to_light) > 0.0 {
-                tally.rays.shadow += 1;
-                let shadow = Ray::new(p + normal * ctx.shadow_eps, to_light);
-                let range = ctx
-                    .bounds
-                    .intersect(&shadow, ctx.shadow_eps, light_dist)
-                    .map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
-                kept_intervals(
-                    &shadow,
-                    range,
-                    &settings.clips,
-                    &mut sc.clip_out,
-                    &mut sc.clip_tmp,
-                );
-                for iv in &sc.clip_out {
-                    sc.shadow_rays.push(shadow);
-                    sc.shadow_t_min.push(iv.lo);
-                    sc.shadow_t_max.push(iv.hi);
-                    sc.shadow_of.push(owner);
+                    break;
+                };
+                let ray = &sc.rays[k];
+                let p = ray.at(hit.t);
+                let normal = Shader::facing(hit.normal, ray.dir);
+                let (to_light, light_dist) = ctx.shader.light_dir(p, ray.dir);
+                let owner = sc.shade.len() as u32;
+                sc.shade.push(PendingShade {
+                    k: k as u32,
+                    surface: surface as u32,
+                    cell: hit.cell,
+                    t: hit.t,
+                    normal,
+                    to_light,
+                    lit: 1.0,
+                    last: j + 1 == found.n as usize,
+                    more: found.more,
+                });
+                if SHADOWS && Shader::lambert(normal, to_light) > 0.0 {
+                    tally.rays.shadow += 1;
+                    let shadow = Ray::new(p + normal * ctx.shadow_eps, to_light);
+                    let range = ctx
+                        .bounds
+                        .intersect(&shadow, ctx.shadow_eps, light_dist)
+                        .map_or(Interval::EMPTY, |(lo, hi)| Interval::new(lo, hi));
+                    kept_intervals(
+                        &shadow,
+                        range,
+                        &settings.clips,
+                        &mut sc.clip_out,
+                        &mut sc.clip_tmp,
+                    );
+                    for iv in &sc.clip_out {
+                        sc.shadow_rays.push(shadow);
+                        sc.shadow_t_min.push(iv.lo);
+                        sc.shadow_t_max.push(iv.hi);
+                        sc.shadow_of.push(owner);
+                    }
                 }
             }
         }
@@ -742,6 +811,11 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         for ps in &sc.shade {
             let k = ps.k as usize;
             let st = &mut sc.states[sc.active[k] as usize];
+            if st.done {
+                // Layers the scene found past where the ray ends (its opacity or the layer
+                // limit).
+                continue;
+            }
             let surface = &settings.surfaces[ps.surface as usize];
             if st.layers == 0 {
                 st.depth = ps.t;
@@ -764,9 +838,18 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             st.layers += 1;
             if st.transmittance <= OPAQUE_TRANSMITTANCE || st.layers >= ctx.max_layers {
                 st.done = true;
-            } else {
-                st.t_from = ps.t + ctx.peel_eps + ps.t.abs() * 1e-6;
+                continue;
+            }
+            tally.rays.transparency += 1;
+            if !ps.last {
+                continue;
+            }
+            if ps.more {
+                st.t_from = ctx.peel.next_t(ps.t);
                 live += 1;
+            } else {
+                // Nothing more in this interval.
+                live += usize::from(st.next_interval(&sc.intervals));
             }
         }
         if live == 0 {
@@ -824,7 +907,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
 /// Builds the next round's packet from the tile's first `n_states` states and returns its
 /// size: every ray not done, at its current `t_from`, moved on to the next kept interval
 /// when `t_from` is past the current one's end.
-fn next_round(sc: &mut Scratch, n_states: usize, rays: &mut RayCounts) -> usize {
+fn next_round(sc: &mut Scratch, n_states: usize) -> usize {
     let mut n = 0;
     for (idx, st) in sc.states[..n_states].iter_mut().enumerate() {
         if st.done {
@@ -845,9 +928,6 @@ fn next_round(sc: &mut Scratch, n_states: usize, rays: &mut RayCounts) -> usize 
         if st.iv >= st.iv_end {
             st.done = true;
             continue;
-        }
-        if st.layers > 0 {
-            rays.transparency += 1;
         }
         sc.active[n] = idx as u32;
         sc.rays[n] = sc.tile_rays[usize::from(st.pos)];
@@ -1321,7 +1401,7 @@ mod tests {
 
     /// A serial, per-sample twin of the renderer without shadows: the same camera rays,
     /// clip intervals, peeling and compositing, one ray at a time with `first_hit`.
-    fn twin(scene: &SphereScene, cam: &Camera, s: &RenderSettings) -> (Vec<u8>, Vec<f32>) {
+    fn twin<S: IsoScene>(scene: &S, cam: &Camera, s: &RenderSettings) -> (Vec<u8>, Vec<f32>) {
         let (w, h, scale) = (s.width, s.height, s.scale);
         let raygen = RayGen::new(cam, w, h);
         let shader = Shader::new(&s.light);
@@ -1380,6 +1460,78 @@ mod tests {
             }
         }
         (rgba8, depth)
+    }
+
+    /// A grid scene, whose packets go on past transparent hits inside their traversal
+    /// ([`IsoScene::peeled_hits_packet_prepared`]), renders exactly what new rays shot from
+    /// past each layer show: nested shells of a noisy radial field, the outer ones
+    /// transparent, with and without clips, for several layer limits.
+    #[test]
+    fn grid_frames_with_transparent_layers_equal_the_serial_twin() {
+        use crate::grid::GridScene;
+        use crate::intersect::Intersector;
+        use crate::kdtree::KdTreeConfig;
+        use crate::math::rng::Rng;
+        use crate::volume::{Grid, VoxelBuffer};
+        let n = 24usize;
+        let grid = Grid::uniform([n; 3], [-1.0; 3], [2.0 / (n - 1) as f64; 3]).unwrap();
+        let mut rng = Rng::new(5);
+        let mut voxels = Vec::with_capacity(n * n * n);
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let p = Vec3::new(i as f32, j as f32, k as f32) / (n - 1) as f32 * 2.0 - 1.0;
+                    voxels.push(p.length() + 0.08 * rng.range_f32(-1.0, 1.0));
+                }
+            }
+        }
+        let scene = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        let bounds = scene.world_bounds();
+        let (mut deep, mut cases) = (0u64, 0);
+        for (k, max_layers) in [2u32, 4, 7].into_iter().enumerate() {
+            let cam = Camera::orbit(&bounds, 30.0 + 50.0 * k as f32, 20.0, 40.0);
+            for clips in [
+                vec![],
+                vec![ClipRegion::Plane {
+                    normal: Vec3::new(0.3, 1.0, 0.2),
+                    offset: 0.1,
+                }],
+            ] {
+                let settings = RenderSettings {
+                    width: 40,
+                    height: 33,
+                    surfaces: vec![
+                        Surface {
+                            opacity: 0.35,
+                            ..Surface::new(0.85, [0.9, 0.5, 0.4])
+                        },
+                        Surface {
+                            opacity: 0.6,
+                            ..Surface::new(0.6, [0.3, 0.8, 0.4])
+                        },
+                        Surface::new(0.35, [0.9, 0.9, 0.8]),
+                    ],
+                    clips,
+                    max_layers,
+                    ..RenderSettings::default()
+                };
+                let (rgba8, depth) = twin(&scene, &cam, &settings);
+                let f = render(&scene, &cam, &settings, &go()).unwrap();
+                assert_eq!(f.rgba8, rgba8, "layers {max_layers}");
+                let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&f.depth), bits(&depth), "layers {max_layers}");
+                deep += f.rays.transparency;
+                cases += 1;
+            }
+        }
+        assert_eq!(cases, 6);
+        assert!(deep > 1000, "{deep} transparent layers gone past");
     }
 
     #[test]

@@ -118,6 +118,92 @@ impl Stats for CountStats {
     }
 }
 
+/// Most hits one call of [`IsoScene::peeled_hits_packet_prepared`] returns per ray.
+pub const MAX_PEELED: usize = 4;
+
+/// How a ray goes on past transparent hits ("transparent depth peeling", thesis seed 004
+/// §8.6): the next layer is the first hit from [`Peel::next_t`] of the last one on, and a
+/// hit on an opaque surface ends the ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Peel {
+    /// Bit `s` set: a hit on isovalue `s` ends the ray. Isovalues from 64 on never do here
+    /// (the caller drops layers past where its compositing ends the ray).
+    pub opaque: u64,
+    /// Hits per ray and call, 1 to [`MAX_PEELED`].
+    pub max_hits: u32,
+    /// Absolute part of the distance past a hit where the next is sought (a part relative
+    /// to `t` is added, [`Peel::next_t`]).
+    pub eps: f32,
+}
+
+impl Peel {
+    /// Where the search for the next layer starts after a hit at `t`: far enough past it
+    /// that the same crossing, found again with `f32` rounding, is not taken twice.
+    #[inline]
+    pub fn next_t(&self, t: f32) -> f32 {
+        t + self.eps + t.abs() * 1e-6
+    }
+
+    /// Whether a hit on isovalue `surface` ends the ray.
+    #[inline]
+    pub fn ends_ray(&self, surface: u32) -> bool {
+        surface < 64 && self.opaque >> surface & 1 == 1
+    }
+
+    pub(crate) fn cap(&self) -> usize {
+        (self.max_hits as usize).clamp(1, MAX_PEELED)
+    }
+}
+
+/// A ray's hits from one call of [`IsoScene::peeled_hits_packet_prepared`], front to back.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PeeledHits {
+    /// How many of `hits` are set.
+    pub n: u32,
+    pub hits: [Hit; MAX_PEELED],
+    /// The ray may hit more past the last hit (the caller asks again from its
+    /// [`Peel::next_t`]); false when the last hit ends the ray or nothing is left in the
+    /// interval.
+    pub more: bool,
+}
+
+impl PeeledHits {
+    pub const NONE: Self = Self {
+        n: 0,
+        hits: [Hit {
+            t: f32::INFINITY,
+            surface: 0,
+            normal: Vec3::Z,
+            cell: 0,
+        }; MAX_PEELED],
+        more: false,
+    };
+
+    /// The hits that are set.
+    pub fn hits(&self) -> &[Hit] {
+        &self.hits[..self.n as usize]
+    }
+
+    /// Sets these to a first-hit search's result: `hit` alone, with more to come past it
+    /// unless it ends the ray.
+    #[inline]
+    pub fn set_first(&mut self, hit: Option<Hit>, peel: &Peel) {
+        self.n = u32::from(hit.is_some());
+        self.more = false;
+        if let Some(h) = hit {
+            self.hits[0] = h;
+            self.more = !peel.ends_ray(h.surface);
+        }
+    }
+
+    /// Appends `hit` (the caller keeps them in order and within [`MAX_PEELED`]).
+    #[inline]
+    pub fn push(&mut self, hit: Hit) {
+        self.hits[self.n as usize] = hit;
+        self.n += 1;
+    }
+}
+
 /// Something the renderer can shoot rays at: the isosurfaces of a volume.
 ///
 /// All rays and bounds are in world space. The active isovalues (any number) are prepared
@@ -187,6 +273,47 @@ pub trait IsoScene: Sync {
     ) {
         for (i, ray) in rays.iter().enumerate() {
             out[i] = self.first_hit_prepared(ray, t_min[i], t_max[i], isos, stats);
+        }
+    }
+
+    /// For each ray, its layers as the renderer peels them: the first hit in
+    /// `[t_min[i], t_max[i]]`, then the first from [`Peel::next_t`] of the previous one on,
+    /// until a hit ends the ray ([`Peel::ends_ray`]), `peel.max_hits` are found or none is
+    /// left; written to every `out[i]`.
+    ///
+    /// The default returns each ray's first hit only ([`IsoScene::first_hit_packet_prepared`],
+    /// [`PeeledHits::more`] set after a transparent one), so the caller shoots again from
+    /// past it. Scenes whose traversal can go on past a hit override this: the kd-tree
+    /// packets carry their rays on through the cells that follow, instead of new rays
+    /// descending from the root.
+    fn peeled_hits_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &Self::Isovalues,
+        peel: &Peel,
+        out: &mut [PeeledHits],
+        stats: &mut S,
+    ) {
+        // As many rays at once as a renderer tile has, so structures with large packets
+        // (16×16 BVH frusta) keep them.
+        const CHUNK: usize = 256;
+        let mut first = [None; CHUNK];
+        for (c, chunk) in rays.chunks(CHUNK).enumerate() {
+            let base = c * CHUNK;
+            let m = chunk.len();
+            self.first_hit_packet_prepared(
+                chunk,
+                &t_min[base..base + m],
+                &t_max[base..base + m],
+                isos,
+                &mut first[..m],
+                stats,
+            );
+            for (o, &h) in out[base..base + m].iter_mut().zip(&first[..m]) {
+                o.set_first(h, peel);
+            }
         }
     }
 
@@ -278,6 +405,20 @@ impl<S: IsoScene> IsoScene for WholeBounds<'_, S> {
     ) {
         self.0
             .first_hit_packet_prepared(rays, t_min, t_max, isos, out, stats);
+    }
+
+    fn peeled_hits_packet_prepared<St: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &S::Isovalues,
+        peel: &Peel,
+        out: &mut [PeeledHits],
+        stats: &mut St,
+    ) {
+        self.0
+            .peeled_hits_packet_prepared(rays, t_min, t_max, isos, peel, out, stats);
     }
 }
 
