@@ -422,7 +422,14 @@ def test_ctrl_c_cancels_a_long_render(tmp_path):
         "except KeyboardInterrupt:\n"
         "    print('interrupted', time.time() - t0, flush=True)\n"
     )
-    p = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
+    # A child inherits an ignored SIGINT (a runner's background job), and Python then installs
+    # no handler for it: give the child the default disposition, as a terminal would.
+    p = subprocess.Popen(
+        [sys.executable, str(script)],
+        stdout=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     assert p.stdout.readline().strip() == "ready"
     time.sleep(1.0)
     p.send_signal(signal.SIGINT)
