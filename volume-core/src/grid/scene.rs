@@ -22,7 +22,7 @@ use super::hit::{
 use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::packet::LaneNext;
+use crate::kdtree::packet::ray_go_on;
 use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, packet_compatible, with_packet_stack};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, HitField, IsoScene, Peel, PeeledHits, SceneVisitor, Stats};
@@ -402,18 +402,12 @@ impl<T: Voxel> GridScene<T> {
                 }
                 // One by one: the ray again from past each transparent layer.
                 for i in from..to {
-                    let mut t_from = t0[i];
-                    while t_from <= t1[i] {
-                        let Some(h) =
-                            self.cell_hit_with(&local[i], t_from, t1[i], isos, intersector, stats)
-                        else {
-                            break;
-                        };
-                        match layers.add(i, h) {
-                            LaneNext::Stop(_) => break,
-                            LaneNext::GoOnFrom(t) => t_from = t,
-                        }
-                    }
+                    ray_go_on(
+                        t0[i],
+                        t1[i],
+                        |t| self.cell_hit_with(&local[i], t, t1[i], isos, intersector, stats),
+                        |h| layers.add(i, h),
+                    );
                 }
             }
         }

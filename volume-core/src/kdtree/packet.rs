@@ -213,6 +213,27 @@ pub(crate) enum LaneNext {
     GoOnFrom(f32),
 }
 
+/// The one-ray twin of a lane going on past its hits: `first_hit(t)` is the ray's first
+/// hit from `t` to `t_to`, handed to `on_hit` until that stops the ray or none is left.
+#[inline]
+pub(crate) fn ray_go_on(
+    t_from: f32,
+    t_to: f32,
+    mut first_hit: impl FnMut(f32) -> Option<CellHit>,
+    mut on_hit: impl FnMut(CellHit) -> LaneNext,
+) {
+    let mut t = t_from;
+    while t <= t_to {
+        let Some(hit) = first_hit(t) else {
+            return;
+        };
+        match on_hit(hit) {
+            LaneNext::Stop(_) => return,
+            LaneNext::GoOnFrom(next) => t = next,
+        }
+    }
+}
+
 /// The leaf step of a packet traversal, written once for the in-core and out-of-core trees:
 /// tests cell `cell` of the block (`frame`, `voxels`, `dims`) against the `active` rays (bit
 /// `k` = ray `k`) in `f32x8` lanes, each over its clipped interval as the single-ray
@@ -371,22 +392,12 @@ impl<T: Voxel> KdTree<T> {
         if self.depth >= INLINE_STACK {
             // Absurdly deep trees (> 2^64 cells): trace one by one.
             for i in 0..n {
-                let mut t_from = t0[i];
-                while let Some(hit) = self.first_hit(
-                    frame,
-                    voxels,
-                    &rays[i],
-                    t_from,
+                ray_go_on(
+                    t0[i],
                     t1[i],
-                    isos,
-                    intersector,
-                    stats,
-                ) {
-                    match on_hit(i, hit) {
-                        LaneNext::Stop(_) => break,
-                        LaneNext::GoOnFrom(t) => t_from = t,
-                    }
-                }
+                    |t| self.first_hit(frame, voxels, &rays[i], t, t1[i], isos, intersector, stats),
+                    |hit| on_hit(i, hit),
+                );
             }
             return;
         }
