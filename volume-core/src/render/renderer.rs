@@ -730,7 +730,12 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             for (j, &hit) in found.hits().iter().enumerate() {
                 let Some(&surface) = ctx.surface_of.get(hit.surface as usize) else {
                     // A scene reporting a surface we did not ask for: stop, do not guess.
-                    st.done = true;
+                    // The layers in front of it are still composited, then the ray ends.
+                    st.iv_end = st.iv + 1;
+                    match sc.shade.last_mut().filter(|_| j > 0) {
+                        Some(prev) => (prev.last, prev.more) = (true, false),
+                        None => st.done = true,
+                    }
                     break;
                 };
                 let ray = &sc.rays[k];
