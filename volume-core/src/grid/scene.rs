@@ -23,7 +23,9 @@ use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
 use crate::kdtree::packet::ray_go_on;
-use crate::kdtree::{KdTree, KdTreeConfig, PACKET_WIDTH, packet_compatible, with_packet_stack};
+use crate::kdtree::{
+    KdTree, KdTreeConfig, LIVE_COVER_NODES, PACKET_WIDTH, packet_compatible, with_packet_stack,
+};
 use crate::math::{Aabb, Ray};
 use crate::render::{Hit, HitField, IsoScene, Peel, PeeledHits, SceneVisitor, Stats};
 use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
@@ -300,6 +302,15 @@ impl<T: Voxel> IsoScene for GridScene<T> {
         }
     }
 
+    /// The world boxes of the live nodes of [`KdTree::live_cell_boxes`] at
+    /// [`LIVE_COVER_NODES`], each a cell wider on every side.
+    fn live_boxes(&self, isos: &IsoSet<T>, out: &mut Vec<Aabb>) {
+        self.tree
+            .live_cell_boxes(isos, LIVE_COVER_NODES, |[lo, hi]| {
+                out.push(self.frame.world_bounds_of_cells(lo, hi));
+            });
+    }
+
     #[inline]
     fn first_hit_prepared<S: Stats>(
         &self,
@@ -574,6 +585,12 @@ impl IsoScene for AnyGridScene {
     fn live_bounds(&self, isos: &AnyIsoSet) -> Aabb {
         crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
             s.live_bounds(i)
+        }; else isovalues_of_another_type())
+    }
+
+    fn live_boxes(&self, isos: &AnyIsoSet, out: &mut Vec<Aabb>) {
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.live_boxes(i, out)
         }; else isovalues_of_another_type())
     }
 

@@ -124,6 +124,11 @@ pub(crate) const INLINE_STACK: usize = 64;
 /// live cells (8 cells for a 256³ grid: 32³ nodes) for well under 0.1 ms of work per frame.
 pub const LIVE_BOX_NODES: usize = 1 << 15;
 
+/// Most nodes whose boxes the renderer projects to find the pixels that can see a surface
+/// ([`crate::render::IsoScene::live_boxes`]): 16³-cell nodes for a 256³ grid, a few
+/// thousand boxes a frame.
+pub const LIVE_COVER_NODES: usize = 1 << 12;
+
 impl<T: Voxel> KdTree<T> {
     /// Builds the tree over `voxels` (x fastest, `dims` samples) with split positions from
     /// `frame`.
@@ -381,44 +386,57 @@ impl<T: Voxel> KdTree<T> {
     /// free; here they spare the rays that pass beside the surface a walk through the
     /// culled nodes around it.
     pub fn live_cell_box(&self, isos: &IsoSet<T>) -> Option<[[usize; 3]; 2]> {
+        let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+        self.live_cell_boxes(isos, LIVE_BOX_NODES, |[l, h]| {
+            for a in 0..3 {
+                lo[a] = lo[a].min(l[a]);
+                hi[a] = hi[a].max(h[a]);
+            }
+        });
+        (lo[0] != usize::MAX).then_some([lo, hi])
+    }
+
+    /// Calls `f` with the inclusive cell box `[lo, hi]` of every live node (its range holds
+    /// one of `isos`) of the deepest stored level with at most `max_nodes` nodes (the
+    /// whole grid, once, when no level is stored); every cell that can hold a crossing lies
+    /// in one of these boxes ([`KdTree::live_cell_box`]).
+    pub fn live_cell_boxes(
+        &self,
+        isos: &IsoSet<T>,
+        max_nodes: usize,
+        mut f: impl FnMut([[usize; 3]; 2]),
+    ) {
         if self.levels.is_empty() || isos.is_empty() {
-            return None;
+            return;
         }
         if self.stored == 0 {
-            return Some([[0; 3], self.cells.map(|c| c - 1)]);
+            f([[0; 3], self.cells.map(|c| c - 1)]);
+            return;
         }
         let l = (0..self.stored)
             .rev()
-            .find(|&l| self.levels[l].count.iter().product::<usize>() <= LIVE_BOX_NODES)
+            .find(|&l| self.levels[l].count.iter().product::<usize>() <= max_nodes)
             .unwrap_or(0);
         let lv = &self.levels[l];
         let len = lv.count.iter().product::<usize>();
         let level = &self.ranges[lv.range_offset..lv.range_offset + len];
-        let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
+        let e = lv.extent;
         // Rows run along the fastest axis `f` (see `refit_nodes`).
-        let [f, m, s] = lv.order;
-        for (row, nodes) in level.chunks_exact(lv.count[f]).enumerate() {
+        let [fa, m, sa] = lv.order;
+        for (row, nodes) in level.chunks_exact(lv.count[fa]).enumerate() {
             let mut n = [0; 3];
             n[m] = row % lv.count[m];
-            n[s] = row / lv.count[m];
+            n[sa] = row / lv.count[m];
             for (i, r) in nodes.iter().enumerate() {
                 if isos.any_in(r[0], r[1]) {
-                    n[f] = i;
-                    for a in 0..3 {
-                        lo[a] = lo[a].min(n[a]);
-                        hi[a] = hi[a].max(n[a]);
-                    }
+                    n[fa] = i;
+                    f([
+                        [0, 1, 2].map(|a| n[a] * e[a]),
+                        [0, 1, 2].map(|a| ((n[a] + 1) * e[a]).min(self.cells[a]) - 1),
+                    ]);
                 }
             }
         }
-        if lo[0] == usize::MAX {
-            return None;
-        }
-        let e = lv.extent;
-        Some([
-            [0, 1, 2].map(|a| lo[a] * e[a]),
-            [0, 1, 2].map(|a| ((hi[a] + 1) * e[a]).min(self.cells[a]) - 1),
-        ])
     }
 
     /// First hit of `ray` (traversal units) within `[t0, t1]`, already clipped to the

@@ -21,6 +21,7 @@ pub mod analytic;
 pub mod camera;
 pub mod clip;
 pub mod colormap;
+mod coverage;
 pub mod renderer;
 pub mod scene;
 pub mod settings;

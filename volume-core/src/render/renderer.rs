@@ -15,7 +15,9 @@
 //! [`RayGen::ray_at`]; the same 8-wide pass cuts them to the scene's live bounds
 //! ([`IsoScene::live_bounds`]: for grids, the box of the kd-tree nodes that hold an isovalue,
 //! a cell wider; bit-identical to [`Aabb::intersect`]); a tile outside the live box's
-//! projection (`RayGen::screen_rect`) makes no rays at all. Only samples whose ray meets
+//! projection (`RayGen::screen_rect`) makes no rays at all, nor does a sample outside the
+//! projections of the scene's smaller live boxes ([`IsoScene::live_boxes`]: for grids, the
+//! kd-tree's live nodes at a coarse level; `render::coverage`). Only samples whose ray meets
 //! them (and, when there are clip regions, keeps a clip interval, [`super::clip`]) get a
 //! per-ray state; the tile is painted
 //! with the background first and only those samples are composited over it. Then the tile runs
@@ -52,6 +54,7 @@ use crate::math::{Aabb, Interval, Ray};
 use crate::render::camera::{Camera, RayGen};
 use crate::render::clip::kept_intervals;
 use crate::render::colormap::Colormap;
+use crate::render::coverage::Coverage;
 use crate::render::scene::{
     CountStats, Hit, HitField, IsoScene, MAX_PEELED, NoStats, Peel, PeeledHits, Stats,
     TraversalCounts,
@@ -233,6 +236,9 @@ struct Ctx<'a, I> {
     /// Pixels outside this rectangle see no part of `bounds` ([`RayGen::screen_rect`]):
     /// their tiles make no rays at all.
     screen: Option<[f32; 4]>,
+    /// The samples that may see one of the scene's live boxes ([`IsoScene::live_boxes`]);
+    /// the others make no ray. `None`: every sample may.
+    cover: Option<Coverage>,
     /// How rays go on past transparent hits: the surfaces that end a ray, the hits per
     /// traversal call and the distance past a hit where the next is sought.
     peel: Peel,
@@ -460,6 +466,14 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let raygen = RayGen::new(camera, width, height);
     // Rays are cut to where the surfaces can be; the offsets keep the data's scale.
     let live = scene.live_bounds(&isos);
+    let mut live_boxes = Vec::new();
+    scene.live_boxes(&isos, &mut live_boxes);
+    // One box says no more than `live` does.
+    let cover = if live_boxes.len() > 1 {
+        Coverage::new(&raygen, &live_boxes, samples, scale)
+    } else {
+        None
+    };
     let opaque = opaque_mask(settings, &surface_of);
     let peels = settings.max_layers > 1
         && (surface_of.len() > 64 || (opaque.count_ones() as usize) < surface_of.len());
@@ -467,6 +481,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         settings,
         colorings,
         screen: raygen.screen_rect(&live),
+        cover,
         raygen,
         shader: Shader::new(&settings.light),
         bounds: live,
@@ -613,9 +628,17 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let tile_rows = sc.tile_rays.chunks_exact_mut(TILE as usize);
     let rows_in = if off_screen { 0 } else { n_y as usize };
     for (dy, (row, out)) in rows.iter().zip(tile_rows).enumerate().take(rows_in) {
+        let covered = ctx
+            .cover
+            .as_ref()
+            .map_or(u32::MAX, |c| c.row(tile[0], tile[1] * TILE + dy as u32));
+        if covered == 0 {
+            continue;
+        }
         let out: &mut [Ray; TILE as usize] = out.try_into().expect("a tile row");
-        meets[dy] =
-            ctx.raygen
+        meets[dy] = covered
+            & ctx
+                .raygen
                 .rays_row_in(&columns, *row, &ctx.bounds, out, &mut lo[dy], &mut hi[dy]);
     }
     sc.fit();
@@ -1537,6 +1560,35 @@ mod tests {
         }
         assert_eq!(cases, 6);
         assert!(deep > 1000, "{deep} transparent layers gone past");
+
+        // The frames above are the twin's although rays were made only where the projected
+        // live nodes cover the screen (`render::coverage`): fewer than the samples whose
+        // ray meets the live box the rays are clipped to.
+        let cam = Camera::orbit(&bounds, 30.0, 20.0, 40.0);
+        let settings = RenderSettings {
+            width: 160,
+            height: 132,
+            surfaces: vec![Surface::new(0.85, [0.9, 0.5, 0.4])],
+            collect_stats: true,
+            ..RenderSettings::default()
+        };
+        let f = render(&scene, &cam, &settings, &go()).unwrap();
+        assert_eq!(f.rgba8, twin(&scene, &cam, &settings).0);
+        let raygen = RayGen::new(&cam, 160, 132);
+        let live = scene.live_bounds(&scene.prepare(&[0.85]));
+        let meet = (0..132u32)
+            .flat_map(|y| (0..160u32).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let ray = raygen.ray_at(x as f32 + 0.5, y as f32 + 0.5);
+                live.intersect(&ray, 0.0, f32::INFINITY).is_some()
+            })
+            .count() as u64;
+        let hits = f.depth.iter().filter(|d| d.is_finite()).count() as u64;
+        assert!(
+            hits > 1000 && f.counts.rays * 20 < meet * 19,
+            "{} rays traced, {meet} meet the live box, {hits} hit",
+            f.counts.rays
+        );
     }
 
     #[test]

@@ -234,6 +234,14 @@ pub trait IsoScene: Sync {
         self.world_bounds()
     }
 
+    /// World boxes outside all of which no hit of the prepared isovalues lies, pushed onto
+    /// `out`: the renderer projects them and makes no ray for a pixel that sees none of them
+    /// (`render::coverage`). Defaults to [`IsoScene::live_bounds`] alone; scenes that know
+    /// where the isovalues can be give several smaller boxes.
+    fn live_boxes(&self, isos: &Self::Isovalues, out: &mut Vec<Aabb>) {
+        out.push(self.live_bounds(isos));
+    }
+
     /// First hit along the ray in `[t_min, t_max]`.
     fn first_hit_prepared<S: Stats>(
         &self,
