@@ -864,4 +864,38 @@ fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
         let hits = depth_agrees_with_brute_force(&scene, &cam, &cut, &[2.2, 1.5]);
         assert!(hits > 20, "{hits} hits");
     }
+    // Rays are made only for samples inside the projections of the live frontier's boxes
+    // (`IsoScene::live_boxes`): fewer than the samples whose ray meets the live box around
+    // a ball in the middle of the mesh, and the same frame as over the whole mesh.
+    let centre = Vec3::splat(1.5);
+    let ball = grid_mesh(12, 0.25, &mut rng, |p, _| (p - centre).length());
+    let scene = TetScene::new(&ball, "f", BvhOptions::default()).unwrap();
+    let settings = RenderSettings {
+        width: 4 * w,
+        height: 4 * h,
+        surfaces: vec![Surface::new(0.9, [0.8, 0.8, 0.7])],
+        collect_stats: true,
+        ..RenderSettings::default()
+    };
+    let f = render(&scene, &cam, &settings, &go).unwrap();
+    assert_eq!(
+        f.rgba8,
+        render(&WholeBounds(&scene), &cam, &settings, &go)
+            .unwrap()
+            .rgba8
+    );
+    let live = scene.live_bounds(&scene.prepare(&[0.9]));
+    let raygen = volume_core::render::RayGen::new(&cam, 4 * w, 4 * h);
+    let meet = (0..4 * h)
+        .flat_map(|y| (0..4 * w).map(move |x| (x, y)))
+        .filter(|&(x, y)| {
+            let ray = raygen.ray_at(x as f32 + 0.5, y as f32 + 0.5);
+            live.intersect(&ray, 0.0, f32::INFINITY).is_some()
+        })
+        .count() as u64;
+    assert!(
+        f.counts.rays < meet,
+        "{} rays traced, {meet} meet the live box",
+        f.counts.rays
+    );
 }

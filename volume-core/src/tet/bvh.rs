@@ -41,7 +41,7 @@ use rayon::prelude::*;
 
 /// Bound on the tree depth, so traversal stacks can be fixed arrays.
 pub const MAX_DEPTH: usize = 128;
-/// Most nodes [`TetBvh::live_bounds`] opens (well under 0.1 ms of work per frame).
+/// Most nodes [`TetBvh::live_boxes`] opens (well under 0.1 ms of work per frame).
 pub const LIVE_BOX_NODES: usize = 4096;
 /// Depth below which spatial splits give way to balanced median splits.
 const MEDIAN_DEPTH: u32 = 96;
@@ -476,33 +476,43 @@ impl TetBvh {
     }
 
     /// The spatial box `(lo, hi)` of the nodes whose isorange holds one of `isovalues`, or
-    /// `None` when none does: live subtrees are opened until [`LIVE_BOX_NODES`] nodes have
-    /// been looked at, the rest are taken whole. Every tet that can hold a crossing lies
-    /// inside (a tet's values stay within its vertices' range, which its leaf's isorange
-    /// holds).
+    /// `None` when none does: the union of [`TetBvh::live_boxes`].
     pub fn live_bounds(&self, isovalues: &[f32]) -> Option<(Vec3, Vec3)> {
-        let live = |n: &BvhNode| isovalues.iter().any(|&c| n.lo.w <= c && c <= n.hi.w);
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        let mut stack = Vec::with_capacity(MAX_DEPTH);
+        self.live_boxes(isovalues, |l, h| {
+            lo = lo.min(l);
+            hi = hi.max(h);
+        });
+        (lo.cmple(hi).all()).then_some((lo, hi))
+    }
+
+    /// Calls `f` with the spatial box `(lo, hi)` of each node of a frontier of the nodes
+    /// whose isorange holds one of `isovalues`: live subtrees are opened until
+    /// [`LIVE_BOX_NODES`] nodes have been looked at, the rest are taken whole. Every tet
+    /// that can hold a crossing lies inside one of the boxes (a tet's values stay within
+    /// its vertices' range, which its leaf's isorange holds).
+    pub fn live_boxes(&self, isovalues: &[f32], mut f: impl FnMut(Vec3, Vec3)) {
+        let live = |n: &BvhNode| isovalues.iter().any(|&c| n.lo.w <= c && c <= n.hi.w);
+        // Breadth first, so the frontier's boxes are of like size (depth first left the
+        // big siblings of one deep branch whole).
+        let mut queue = std::collections::VecDeque::with_capacity(LIVE_BOX_NODES);
         if self.nodes.first().is_some_and(live) {
-            stack.push(0u32);
+            queue.push_back(0u32);
         }
         let mut looked = 0usize;
-        while let Some(i) = stack.pop() {
+        while let Some(i) = queue.pop_front() {
             let n = &self.nodes[i as usize];
             looked += 1;
-            if n.is_leaf() || looked + stack.len() >= LIVE_BOX_NODES {
-                lo = lo.min(n.lo.truncate());
-                hi = hi.max(n.hi.truncate());
+            if n.is_leaf() || looked + queue.len() >= LIVE_BOX_NODES {
+                f(n.lo.truncate(), n.hi.truncate());
                 continue;
             }
             for c in [i + 1, n.link] {
                 if live(&self.nodes[c as usize]) {
-                    stack.push(c);
+                    queue.push_back(c);
                 }
             }
         }
-        (lo.cmple(hi).all()).then_some((lo, hi))
     }
 
     /// Recomputes the bounds bottom-up (parallel subtrees, then the top). With

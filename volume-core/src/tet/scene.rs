@@ -573,6 +573,13 @@ impl IsoScene for TetScene {
         Aabb::new(lo, hi).widened_within(&self.bounds)
     }
 
+    /// The boxes of the BVH's live frontier ([`TetBvh::live_boxes`]), each a hair wider.
+    fn live_boxes(&self, isovalues: &Vec<f32>, out: &mut Vec<Aabb>) {
+        self.bvh.live_boxes(isovalues, |lo, hi| {
+            out.push(Aabb::new(lo, hi).widened_within(&self.bounds));
+        });
+    }
+
     fn first_hit_prepared<S: Stats>(
         &self,
         ray: &Ray,
