@@ -590,8 +590,8 @@ impl IsoScene for AnyGridScene {
 
     fn live_boxes(&self, isos: &AnyIsoSet, out: &mut Vec<Aabb>) {
         crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
-            s.live_boxes(i, out)
-        }; else isovalues_of_another_type())
+            s.live_boxes(i, out);
+        }; else isovalues_of_another_type());
     }
 
     #[inline]

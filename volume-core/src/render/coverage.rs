@@ -124,7 +124,7 @@ mod tests {
             let (w, h) = (rng.below(90) + 7, rng.below(70) + 5);
             let scale = [1, 1, 2, 3][rng.index(4)];
             let raygen = RayGen::new(&cam, w, h);
-            let boxes: Vec<Aabb> = (0..rng.index(4) + 1)
+            let boxes: Vec<Aabb> = (0..=rng.index(4))
                 .map(|_| {
                     let c = rng.vec3(-1.0, 1.0);
                     let e = rng.vec3(0.01, 0.4);
