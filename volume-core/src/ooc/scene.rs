@@ -889,33 +889,59 @@ fn child_of(left: [u32; 3], u: [u32; 3], h: usize, right: bool) -> ([u32; 3], us
 /// [`crate::kdtree::LIVE_BOX_NODES`]).
 const LIVE_BOX_NODES: usize = 1 << 15;
 
+/// Most nodes [`OocScene::live_boxes`] looks at before the rest count whole: its boxes are
+/// projected every frame (as the in-core [`crate::kdtree::LIVE_COVER_NODES`]).
+const LIVE_COVER_NODES: usize = 1 << 12;
+
 impl<T: Voxel> OocScene<T> {
     /// The inclusive finest-cell box around every cell this frame's traversal can find a
     /// crossing in (the in-core [`crate::kdtree::KdTree::live_cell_box`]), or `None` when
-    /// there is none. The walk follows the traversal's own rule through this frame's
-    /// snapshot: nodes whose quantized range passes a query, into a child treelet exactly
-    /// when the traversal would enter it (resident in the snapshot), else the node's LOD
-    /// cell whole. Breadth first until [`LIVE_BOX_NODES`] nodes were looked at; the
-    /// passing nodes left then count whole. No side effects (no use stamps, no misses).
+    /// there is none: the union of [`OocScene::live_cell_boxes`] at [`LIVE_BOX_NODES`].
     fn live_cell_box(&self, isos: &OocIsovalues<T>) -> Option<[[u64; 3]; 2]> {
+        let (mut lo, mut hi) = ([u64::MAX; 3], [0u64; 3]);
+        self.live_cell_boxes(isos, LIVE_BOX_NODES, |[l, h]| {
+            for a in 0..3 {
+                lo[a] = lo[a].min(l[a]);
+                hi[a] = hi[a].max(h[a]);
+            }
+        });
+        (lo[0] != u64::MAX).then_some([lo, hi])
+    }
+
+    /// Calls `f` with inclusive finest-cell boxes, every cell this frame's traversal can
+    /// find a crossing in lying in one of them. The walk follows the traversal's own rule
+    /// through this frame's snapshot: nodes whose quantized range passes a query, into a
+    /// child treelet exactly when the traversal would enter it (resident in the snapshot),
+    /// else the node's LOD cell whole. Breadth first until `max_nodes` nodes were looked
+    /// at; the passing nodes left then count whole. No side effects (no use stamps, no
+    /// misses).
+    fn live_cell_boxes(
+        &self,
+        isos: &OocIsovalues<T>,
+        max_nodes: usize,
+        mut f: impl FnMut([[u64; 3]; 2]),
+    ) {
         if isos.set.is_empty() || isos.count == 0 {
-            return None;
+            return;
         }
         let queries = &isos.queries[..isos.count];
         let layout = &self.shared.meta.layout;
         let q = &self.shared.meta.quantizer;
         let levels = &self.snap.levels;
-        let render = levels.len().checked_sub(1)?;
-        let root = levels[0].get(&0)?;
+        let Some(render) = levels.len().checked_sub(1) else {
+            return;
+        };
+        let Some(root) = levels[0].get(&0) else {
+            return;
+        };
         let cells = layout.cells();
-        let (mut lo, mut hi) = ([u64::MAX; 3], [0u64; 3]);
         let mut grow = |level: usize, node: [u32; 3]| {
             let e = layout.shape(level).extent;
-            for a in 0..3 {
-                let n = u64::from(node[a]);
-                lo[a] = lo[a].min(n * e[a]);
-                hi[a] = hi[a].max(((n + 1) * e[a]).min(cells[a]) - 1);
-            }
+            let n = node.map(u64::from);
+            f([
+                [0, 1, 2].map(|a| n[a] * e[a]),
+                [0, 1, 2].map(|a| ((n[a] + 1) * e[a]).min(cells[a]) - 1),
+            ]);
         };
         // (treelet level, treelet, tree level, node, heap slot in the treelet)
         let mut todo = std::collections::VecDeque::new();
@@ -937,7 +963,7 @@ impl<T: Voxel> OocScene<T> {
                 continue;
             }
             looked += 1;
-            if looked + todo.len() >= LIVE_BOX_NODES {
+            if looked + todo.len() >= max_nodes {
                 grow(level, node);
                 continue;
             }
@@ -950,7 +976,6 @@ impl<T: Voxel> OocScene<T> {
                 todo.push_back((tl, cur, level + 1, child, ch));
             }
         }
-        (lo[0] != u64::MAX).then_some([lo, hi])
     }
 
     /// The finest complete level of this frame (0 = coarsest); demand-paged treelets of
@@ -1398,6 +1423,15 @@ impl<T: Voxel> IsoScene for OocScene<T> {
                 .world_bounds_of_cells(lo.map(|x| x as usize), hi.map(|x| x as usize)),
             None => Aabb::EMPTY,
         }
+    }
+
+    /// The world boxes of [`OocScene::live_cell_boxes`] at [`LIVE_COVER_NODES`], each a
+    /// cell wider on every side.
+    fn live_boxes(&self, isos: &OocIsovalues<T>, out: &mut Vec<Aabb>) {
+        let frame = &self.shared.frame;
+        self.live_cell_boxes(isos, LIVE_COVER_NODES, |[lo, hi]| {
+            out.push(frame.world_bounds_of_cells(lo.map(|x| x as usize), hi.map(|x| x as usize)));
+        });
     }
 
     #[inline]
