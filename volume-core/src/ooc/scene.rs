@@ -1425,8 +1425,8 @@ impl<T: Voxel> IsoScene for OocScene<T> {
         }
     }
 
-    /// The world boxes of [`OocScene::live_cell_boxes`] at [`LIVE_COVER_NODES`], each a
-    /// cell wider on every side.
+    /// The boxes of the walk of [`IsoScene::live_bounds`] stopped after 2¹² nodes, in
+    /// world units, each a cell wider on every side.
     fn live_boxes(&self, isos: &OocIsovalues<T>, out: &mut Vec<Aabb>) {
         let frame = &self.shared.frame;
         self.live_cell_boxes(isos, LIVE_COVER_NODES, |[lo, hi]| {
