@@ -46,6 +46,7 @@ use crate::intersect::{
     CellHit, CellIntersector, IsoSet, LocalRay, TraversalFrame, cell_corners, corner_range,
     intersect_cell,
 };
+use crate::math::union_of_cell_boxes;
 use crate::render::Stats;
 use crate::voxel::Voxel;
 use step::{Step, ray_step, take_step};
@@ -386,14 +387,7 @@ impl<T: Voxel> KdTree<T> {
     /// free; here they spare the rays that pass beside the surface a walk through the
     /// culled nodes around it.
     pub fn live_cell_box(&self, isos: &IsoSet<T>) -> Option<[[usize; 3]; 2]> {
-        let (mut lo, mut hi) = ([usize::MAX; 3], [0usize; 3]);
-        self.live_cell_boxes(isos, LIVE_BOX_NODES, |[l, h]| {
-            for a in 0..3 {
-                lo[a] = lo[a].min(l[a]);
-                hi[a] = hi[a].max(h[a]);
-            }
-        });
-        (lo[0] != usize::MAX).then_some([lo, hi])
+        union_of_cell_boxes(|f| self.live_cell_boxes(isos, LIVE_BOX_NODES, f))
     }
 
     /// Calls `f` with the inclusive cell box `[lo, hi]` of every live node (its range holds

@@ -123,9 +123,52 @@ impl Aabb {
     }
 }
 
+/// The union of the inclusive cell boxes `[lo, hi]` that `each` hands to its callback
+/// (`None` when it hands none): the live cell box of a kd-tree or treelet walk from its
+/// live nodes' boxes.
+pub(crate) fn union_of_cell_boxes<T: Ord + Copy>(
+    each: impl FnOnce(&mut dyn FnMut([[T; 3]; 2])),
+) -> Option<[[T; 3]; 2]> {
+    let mut union: Option<[[T; 3]; 2]> = None;
+    each(&mut |[l, h]| {
+        union = Some(match union {
+            None => [l, h],
+            Some([lo, hi]) => [
+                std::array::from_fn(|a| lo[a].min(l[a])),
+                std::array::from_fn(|a| hi[a].max(h[a])),
+            ],
+        });
+    });
+    union
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The union equals the per-axis min and max over random boxes, checked cell by cell:
+    /// every cell of every box lies inside, and each face of the union touches a box.
+    #[test]
+    fn union_of_cell_boxes_is_the_smallest_box_holding_them() {
+        let mut rng = rng::Rng::new(3);
+        assert_eq!(union_of_cell_boxes::<u64>(|_| {}), None);
+        for _ in 0..50 {
+            let boxes: Vec<[[u64; 3]; 2]> = (0..=rng.index(5))
+                .map(|_| {
+                    let lo = [0; 3].map(|_: u64| u64::from(rng.below(20)));
+                    [lo, lo.map(|x| x + u64::from(rng.below(6)))]
+                })
+                .collect();
+            let [lo, hi] = union_of_cell_boxes(|f| boxes.iter().for_each(|&b| f(b))).unwrap();
+            for [l, h] in &boxes {
+                assert!((0..3).all(|a| lo[a] <= l[a] && h[a] <= hi[a]));
+            }
+            for a in 0..3 {
+                assert!(boxes.iter().any(|b| b[0][a] == lo[a]));
+                assert!(boxes.iter().any(|b| b[1][a] == hi[a]));
+            }
+        }
+    }
 
     #[test]
     fn slab_test_handles_axis_parallel_and_grazing_rays() {

@@ -53,7 +53,7 @@ use crate::kdtree::packet::{
 };
 use crate::kdtree::step::{Step, ray_step, take_step};
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
-use crate::math::{Aabb, Ray};
+use crate::math::{Aabb, Ray, union_of_cell_boxes};
 use crate::render::{Hit, IsoScene, Stats};
 use crate::voxel::Voxel;
 
@@ -898,14 +898,7 @@ impl<T: Voxel> OocScene<T> {
     /// crossing in (the in-core [`crate::kdtree::KdTree::live_cell_box`]), or `None` when
     /// there is none: the union of [`OocScene::live_cell_boxes`] at [`LIVE_BOX_NODES`].
     fn live_cell_box(&self, isos: &OocIsovalues<T>) -> Option<[[u64; 3]; 2]> {
-        let (mut lo, mut hi) = ([u64::MAX; 3], [0u64; 3]);
-        self.live_cell_boxes(isos, LIVE_BOX_NODES, |[l, h]| {
-            for a in 0..3 {
-                lo[a] = lo[a].min(l[a]);
-                hi[a] = hi[a].max(h[a]);
-            }
-        });
-        (lo[0] != u64::MAX).then_some([lo, hi])
+        union_of_cell_boxes(|f| self.live_cell_boxes(isos, LIVE_BOX_NODES, f))
     }
 
     /// Calls `f` with inclusive finest-cell boxes, every cell this frame's traversal can
