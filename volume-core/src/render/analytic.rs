@@ -5,7 +5,8 @@
 //! and several isovalues). Hits are computed in f64 from the ray–sphere quadratic and are
 //! exact to rounding, which makes this scene the truth for renderer tests (compositing,
 //! shadows, clipping, camera) independent of any volume or intersector. The field only exists
-//! inside `bounds`, like a volume's.
+//! inside `bounds`, like a volume's. Its live boxes are one per sphere and isovalue, so that
+//! renderer tests run with the coverage mask on (`render::coverage`).
 
 use glam::{DVec3, Vec3};
 
@@ -114,6 +115,20 @@ impl IsoScene for SphereScene {
 
     fn world_bounds(&self) -> Aabb {
         self.bounds
+    }
+
+    /// The box around each shell (a sphere grown by an isovalue), padded by a relative 1e-4
+    /// so that rounding of a hit on its edge stays inside.
+    fn live_boxes(&self, isovalues: &Vec<f32>, out: &mut Vec<Aabb>) {
+        for &iso in isovalues {
+            for &(c, r) in &self.spheres {
+                let radius = r + iso;
+                if radius > 0.0 {
+                    let half = Vec3::splat(radius * (1.0 + 1e-4));
+                    out.push(Aabb::new(c - half, c + half));
+                }
+            }
+        }
     }
 
     fn first_hit_prepared<S: Stats>(

@@ -1699,6 +1699,50 @@ mod tests {
         }
     }
 
+    /// The sphere scene gives one live box per shell, so the coverage mask is on in these
+    /// tests: at every progressive scale the frame is the twin's, yet fewer rays are traced
+    /// than there are samples whose ray meets the scene's bounds. (The region test below
+    /// renders with the mask too.)
+    #[test]
+    fn masked_frames_equal_the_twin_at_every_scale() {
+        let scene = SphereScene {
+            spheres: vec![(Vec3::ZERO, 1.0), (Vec3::new(0.9, 0.3, 0.2), 0.6)],
+            bounds: cube(2.5),
+        };
+        let cam = Camera::orbit(&cube(2.5), 35.0, 20.0, 40.0);
+        for scale in [1, 2, 3, 5] {
+            let (w, h) = (83, 61);
+            let settings = RenderSettings {
+                width: w,
+                height: h,
+                scale,
+                surfaces: vec![Surface::new(0.2, [0.9, 0.7, 0.1])],
+                collect_stats: true,
+                ..RenderSettings::default()
+            };
+            let f = render(&scene, &cam, &settings, &go()).unwrap();
+            assert_eq!(f.rgba8, twin(&scene, &cam, &settings).0, "scale {scale}");
+            let raygen = RayGen::new(&cam, w, h);
+            let centre = |i: u32, n: u32| {
+                (i as f32 * scale as f32 + ((i + 1) as f32 * scale as f32).min(n as f32)) * 0.5
+            };
+            let (sw, sh) = (w.div_ceil(scale), h.div_ceil(scale));
+            let meet = (0..sh)
+                .flat_map(|y| (0..sw).map(move |x| (x, y)))
+                .filter(|&(x, y)| {
+                    let ray = raygen.ray_at(centre(x, w), centre(y, h));
+                    scene.bounds.intersect(&ray, 0.0, f32::INFINITY).is_some()
+                })
+                .count() as u64;
+            let hits = f.depth.iter().filter(|d| d.is_finite()).count();
+            assert!(
+                hits > 0 && f.counts.rays < meet,
+                "scale {scale}: {} rays traced, {meet} samples meet the bounds",
+                f.counts.rays
+            );
+        }
+    }
+
     #[test]
     fn regions_render_exactly_their_tiles_and_assemble_into_the_whole_frame() {
         let scene = SphereScene {
