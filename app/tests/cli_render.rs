@@ -334,6 +334,86 @@ fn info_prints_values_as_their_type_reads() {
     assert!(edges.iter().all(|e| e.parse::<i64>().is_ok()), "{edges:?}");
 }
 
+/// `render --depth-only` writes the shaded render's depth map bit for bit and an image of
+/// flat colours; `bench --depth-only` says so in its JSON; neither takes shadows.
+#[test]
+fn depth_only_renders_the_same_depth_unshaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let render = |tag: &str, extra: &[&str]| {
+        let (png, npy) = (
+            dir.path().join(format!("{tag}.png")),
+            dir.path().join(format!("{tag}.npy")),
+        );
+        let mut args = vec![
+            "render",
+            s(&vol),
+            "--iso",
+            "0.6:#3080ff",
+            "--orbit",
+            "30,20",
+            "--size",
+            "40x30",
+            "-o",
+            s(&png),
+            "--depth-out",
+            s(&npy),
+        ];
+        args.extend_from_slice(extra);
+        ok(&args);
+        let ((rows, cols), depth) =
+            isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap()).unwrap();
+        assert_eq!((rows, cols), (30, 40));
+        (image::open(&png).unwrap().to_rgba8(), depth)
+    };
+    let (shaded_png, shaded) = render("shaded", &[]);
+    let (flat_png, flat) = render("flat", &["--depth-only"]);
+    let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&flat), bits(&shaded));
+    let hit_colours: std::collections::BTreeSet<[u8; 4]> = flat_png
+        .pixels()
+        .zip(&flat)
+        .filter(|(_, d)| d.is_finite())
+        .map(|(p, _)| p.0)
+        .collect();
+    let shaded_colours = shaded_png
+        .pixels()
+        .zip(&shaded)
+        .filter(|(_, d)| d.is_finite())
+        .map(|(p, _)| p.0)
+        .collect::<std::collections::BTreeSet<_>>();
+    assert!(flat.iter().filter(|d| d.is_finite()).count() > 40);
+    assert_eq!(hit_colours.len(), 1, "one flat colour: {hit_colours:?}");
+    assert!(shaded_colours.len() > 10, "the shaded image is lit");
+    let err = fails(&[
+        "render",
+        s(&vol),
+        "--depth-only",
+        "--shadows",
+        "-o",
+        s(&dir.path().join("x.png")),
+    ]);
+    assert!(err.contains("--shadows"), "{err}");
+
+    let json = ok(&[
+        "bench",
+        s(&vol),
+        "--iso",
+        "0.6",
+        "--size",
+        "32x32",
+        "--frames",
+        "1",
+        "--skip-dda",
+        "--skip-single",
+        "--depth-only",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    assert_eq!(v["depth_only"], true);
+    assert!(v["configs"][0]["median_ms"].as_f64().unwrap() > 0.0);
+}
+
 #[test]
 fn bench_json_has_the_documented_fields() {
     let dir = tempfile::tempdir().unwrap();

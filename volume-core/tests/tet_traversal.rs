@@ -861,6 +861,15 @@ fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
         let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&cut.depth), bits(&whole.depth));
         assert!(cut.counts.rays < whole.counts.rays);
+        // Depth only: the shaded frame's depth map (its first hit through the transparent
+        // skin is the skin).
+        let flat = RenderSettings {
+            depth_only: true,
+            ..settings.clone()
+        };
+        let flat = render(&scene, &cam, &flat, &go).unwrap();
+        assert_eq!(bits(&flat.depth), bits(&cut.depth));
+        assert_eq!(flat.rays.shadow, 0);
         let hits = depth_agrees_with_brute_force(&scene, &cam, &cut, &[2.2, 1.5]);
         assert!(hits > 20, "{hits} hits");
     }

@@ -369,7 +369,7 @@ impl Scene {
 
     /// Renders the isosurfaces; see the stub for the arguments. `camera` or `orbit=(az, el)`
     /// (default `(30, 20)`, framing the data as the CLI's `--orbit`).
-    #[pyo3(signature = (isovalues=None, *, camera=None, orbit=None, vfov=40.0, size=(800, 600), shadows=false, light_dir=None, clip_boxes=None, clip_planes=None, layers=4, background=None, supersample=1, level_timeout=120.0, color_by=None, colormap=None, color_range=None, scalar_bar=true))]
+    #[pyo3(signature = (isovalues=None, *, camera=None, orbit=None, vfov=40.0, size=(800, 600), shadows=false, light_dir=None, clip_boxes=None, clip_planes=None, layers=4, background=None, supersample=1, level_timeout=120.0, color_by=None, colormap=None, color_range=None, scalar_bar=true, depth_only=false))]
     fn render(
         &self,
         py: Python<'_>,
@@ -390,7 +390,13 @@ impl Scene {
         colormap: Option<String>,
         color_range: Option<(f32, f32)>,
         scalar_bar: bool,
+        depth_only: bool,
     ) -> PyResult<Image> {
+        if depth_only && (shadows || color_by.is_some()) {
+            return Err(value_error(
+                "depth_only draws flat colours: no shadows or color_by with it".into(),
+            ));
+        }
         let specs = isovalues
             .unwrap_or_default()
             .iter()
@@ -456,6 +462,7 @@ impl Scene {
                 None => defaults.background,
             },
             supersample,
+            depth_only,
             ..defaults
         };
         settings.validate().py_err()?;

@@ -80,6 +80,28 @@ def test_clips_shadows_and_cameras_match_the_cli(cli_render, tmp_path):
     assert png_bytes_of(img, tmp_path) == png
 
 
+def test_depth_only_has_the_shaded_depth_and_matches_the_cli(cli_render, tmp_path):
+    scene = isoscope.Scene(isoscope.open(PHANTOM))
+    isos = [(-300, "#e0c0a0", 0.4), (500, "#d0d0c0")]
+    shaded = scene.render(isos, orbit=(40, 15), size=SIZE)
+    flat = scene.render(isos, orbit=(40, 15), size=SIZE, depth_only=True)
+    np.testing.assert_array_equal(flat.depth, shaded.depth)
+    hit = np.isfinite(flat.depth)
+    assert hit.any()
+    # Each hit pixel is one of the two flat colours; the shaded image has many more.
+    flat_colours = {tuple(p) for p in flat.rgba[hit]}
+    assert flat_colours <= {(0xE0, 0xC0, 0xA0, 255), (0xD0, 0xD0, 0xC0, 255)}, flat_colours
+    assert len({tuple(p) for p in shaded.rgba[hit]}) > 10
+    png, depth = cli_render(
+        PHANTOM, "--iso", "-300:#e0c0a0:0.4", "--iso", "500:#d0d0c0", "--orbit", "40,15",
+        "--size", SIZE_ARG, "--depth-only",
+    )
+    np.testing.assert_array_equal(flat.depth, depth)
+    assert png_bytes_of(flat, tmp_path) == png
+    with pytest.raises(ValueError, match="depth_only"):
+        scene.render(isos, size=SIZE, depth_only=True, shadows=True)
+
+
 def test_supersampling_averages_the_rays_of_a_larger_image_as_the_cli_does(cli_render, tmp_path):
     scene = isoscope.Scene(isoscope.open(PHANTOM))
     cam = isoscope.Camera(eye=(300, -250, 120), target=(0, 0, 0), up=(0, 0, 1), vfov_deg=35)

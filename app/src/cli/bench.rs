@@ -96,6 +96,11 @@ pub struct Args {
     /// --shadows`): the cost of shadows against the same bench without this flag.
     #[arg(long)]
     pub shadows: bool,
+    /// Time the distance query only: each pixel's first hit and its depth, no shading
+    /// normal, lighting or transparency (`render --depth-only`), the query the Embree peer
+    /// times (`../shared/peers`).
+    #[arg(long, conflicts_with = "shadows")]
+    pub depth_only: bool,
     /// Also render N frames that each change the isovalue (over the middle half of the value
     /// range) and compare them with the steady frames (volumes and meshes).
     #[arg(long, value_name = "N")]
@@ -274,6 +279,8 @@ pub struct BenchReport {
     pub threads: usize,
     /// Cell intersector (volumes, `.isot`); `isopolygon` for meshes.
     pub intersector: String,
+    /// `--depth-only`: the frames found first hits and depths, unshaded.
+    pub depth_only: bool,
     /// Build time of the acceleration structure, s (kd-tree, BVH; `.isot`: open time).
     pub build_seconds: f64,
     /// Acceleration structure bytes (kd-tree, BVH nodes; `.isot`: resident treelets).
@@ -436,6 +443,7 @@ fn setup(args: &Args) -> anyhow::Result<Setup> {
         width: args.size[0],
         height: args.size[1],
         surfaces,
+        depth_only: args.depth_only,
         ..RenderSettings::default()
     };
     if args.shadows {
@@ -503,6 +511,7 @@ fn base_report(args: &Args, s: &Setup) -> BenchReport {
         frames: args.frames,
         threads: rayon::current_num_threads(),
         intersector: args.intersector.unwrap_or_default().to_string(),
+        depth_only: args.depth_only,
         build_seconds: s.scene.build_time().as_secs_f64(),
         tree_bytes: s.scene.structure_bytes(),
         data_bytes: 0,

@@ -125,6 +125,11 @@ pub struct SceneArgs {
     /// Cast shadow rays towards the light (default light: above left of the camera).
     #[arg(long)]
     pub shadows: bool,
+    /// Flat frame: each pixel's first hit in its surface's colour, with no shading normal,
+    /// lighting or transparency (the fastest frame; with `--depth-out`, a depth map at the
+    /// cost of the traversal alone).
+    #[arg(long, conflicts_with_all = ["shadows", "color_by"])]
+    pub depth_only: bool,
     /// Directional light: the direction from the surface towards the light, world units.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub light_dir: Option<Vec3>,
@@ -458,6 +463,7 @@ pub fn settings_from(
         background: args.background.unwrap_or(defaults.background),
         collect_stats,
         supersample: args.supersample,
+        depth_only: args.depth_only,
         ..defaults
     };
     if args.layers == 0 {

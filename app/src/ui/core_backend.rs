@@ -139,6 +139,7 @@ pub fn settings(request: &RenderRequest) -> RenderSettings {
         packets: true,
         supersample: supersample_for(o.supersample, request.width.max(request.height)),
         region: None,
+        depth_only: o.flat,
     }
 }
 
@@ -649,7 +650,10 @@ mod tests {
             k => panic!("directional light expected, got {k:?}"),
         }
         assert!(s.shadows);
+        assert!(!s.depth_only);
         assert!(s.validate().is_ok());
+        state.render.flat = true;
+        assert!(settings(&request(&data, &state, 64, 48)).depth_only);
     }
 
     /// An isosurface of the real sample, rendered through the viewer's path, covers the

@@ -606,6 +606,11 @@ pub fn render_options_ui(ui: &mut Ui, state: &mut ViewerState, kind: Option<Data
         })
         .response
         .on_hover_text("k×k rays per pixel, averaged, once the view stops moving");
+    ui.checkbox(&mut o.flat, "Flat (first hits, no lighting)")
+        .on_hover_text(
+            "each pixel's first hit in its surface's colour: no normals, lighting, shadows or \
+             transparency; the fastest frame",
+        );
     ui.add(slider(&mut o.max_layers, 1..=16).text("Transparency layers"));
     ui.checkbox(&mut o.shadows, "Shadows");
     ui.add(slider(&mut o.light_azimuth_deg, -180.0..=180.0).text("Light azimuth °"));

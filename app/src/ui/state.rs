@@ -351,6 +351,9 @@ pub struct RenderOptions {
     /// Anti-aliasing of the still (full-resolution) frame: `k × k` samples per pixel; 1 is
     /// off. Frames while the view moves are never supersampled.
     pub supersample: u32,
+    /// Flat: each pixel's first hit in its surface's flat colour, no lighting, shadows or
+    /// transparency (`RenderSettings::depth_only`; grids skip the shading normal).
+    pub flat: bool,
 }
 
 impl Default for RenderOptions {
@@ -365,6 +368,7 @@ impl Default for RenderOptions {
             smooth_normals: false,
             orientation_marker: true,
             supersample: 1,
+            flat: false,
         }
     }
 }

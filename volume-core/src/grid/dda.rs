@@ -195,6 +195,10 @@ impl<T: Voxel> CellTrace<T> for DdaScene<'_, T> {
         self.frame
     }
 
+    fn normals(isos: &Self::Isovalues) -> bool {
+        isos.normals()
+    }
+
     fn cell_hit<C: CellIntersector, S: Stats>(
         &self,
         ray: &LocalRay,

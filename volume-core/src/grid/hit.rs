@@ -32,6 +32,9 @@ pub trait CellTrace<T: Voxel> {
     /// The frame world rays are mapped into.
     fn frame(&self) -> &TraversalFrame;
 
+    /// Whether hits of these isovalues need their shading normal ([`IsoSet::normals`]).
+    fn normals(isos: &Self::Isovalues) -> bool;
+
     /// The first cell hit in `[t_min, t_max]` and the block holding its cell.
     fn cell_hit<C: CellIntersector, S: Stats>(
         &self,
@@ -89,6 +92,7 @@ pub fn first_hit_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: Stats>(
         &local,
         ray,
         h,
+        G::normals(isos),
     ))
 }
 
@@ -185,6 +189,7 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
             }
         }
     }
+    let normals = G::normals(isos);
     for i in 0..n {
         out[i] = cell_hits[i].map(|(h, block)| {
             make_hit(
@@ -194,6 +199,7 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
                 &local[i],
                 &rays[i],
                 h,
+                normals,
             )
         });
     }
@@ -263,7 +269,9 @@ impl LaneLayers {
     }
 }
 
-/// Turns a cell hit into a [`Hit`] with a world-space normal.
+/// Turns a cell hit into a [`Hit`] with a world-space normal: the central-difference one
+/// when `normal` is set, else the ray's reverse (a frame of hit distances only; the
+/// gradient is about a tenth of a shaded frame, `docs/benchmarks.md`).
 pub fn make_hit<T: Voxel>(
     frame: &TraversalFrame,
     voxels: &[T],
@@ -271,12 +279,17 @@ pub fn make_hit<T: Voxel>(
     local: &LocalRay,
     world: &Ray,
     h: CellHit,
+    normal: bool,
 ) -> Hit {
-    let (lo, hi) = frame.cell_box(h.cell);
-    let p = local.origin + local.dir * h.t;
-    let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
-    let normal = normal_at(frame, voxels, dims, h.cell, uvw)
-        .unwrap_or_else(|| (-world.dir).normalize_or(Vec3::Z));
+    let reverse = || (-world.dir).normalize_or(Vec3::Z);
+    let normal = if normal {
+        let (lo, hi) = frame.cell_box(h.cell);
+        let p = local.origin + local.dir * h.t;
+        let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
+        normal_at(frame, voxels, dims, h.cell, uvw).unwrap_or_else(reverse)
+    } else {
+        reverse()
+    };
     Hit {
         t: h.t,
         surface: h.surface,

@@ -234,6 +234,10 @@ impl<T: Voxel> CellTrace<T> for GridScene<T> {
         &self.frame
     }
 
+    fn normals(isos: &Self::Isovalues) -> bool {
+        isos.normals()
+    }
+
     #[inline]
     fn cell_hit<C: CellIntersector, S: Stats>(
         &self,
@@ -287,6 +291,10 @@ impl<T: Voxel> IsoScene for GridScene<T> {
 
     fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
         IsoSet::mapped(isovalues, self.value_map)
+    }
+
+    fn prepare_distances(&self, isovalues: &[f32]) -> IsoSet<T> {
+        self.prepare(isovalues).without_normals()
     }
 
     fn world_bounds(&self) -> Aabb {
@@ -433,6 +441,7 @@ impl<T: Voxel> GridScene<T> {
                     &local[i],
                     &rays[i],
                     h,
+                    isos.normals(),
                 ));
             }
             o.more = layers.more(i);
@@ -576,6 +585,10 @@ impl IsoScene for AnyGridScene {
 
     fn prepare(&self, isovalues: &[f32]) -> AnyIsoSet {
         dispatch_grid_scene!(self, s => s.prepare(isovalues).into())
+    }
+
+    fn prepare_distances(&self, isovalues: &[f32]) -> AnyIsoSet {
+        dispatch_grid_scene!(self, s => s.prepare_distances(isovalues).into())
     }
 
     fn world_bounds(&self) -> Aabb {

@@ -307,9 +307,13 @@ pub const INLINE_ISOVALUES: usize = 16;
 /// `lo = floor(c)`, `hi = ceil(c)` for integer types (exact: integer ranges contain the
 /// real `c` iff they contain both) and `lo = hi = c` for floats. Isovalues outside the
 /// type's range or NaN can never be hit and are dropped.
+///
+/// The set also says whether hits need a shading normal (on unless
+/// [`IsoSet::without_normals`]): a frame that reads only hit distances skips it.
 #[derive(Debug, Clone)]
 pub struct IsoSet<T: Voxel> {
     len: usize,
+    normals: bool,
     lo: [T; INLINE_ISOVALUES],
     hi: [T; INLINE_ISOVALUES],
     value: [f32; INLINE_ISOVALUES],
@@ -327,6 +331,7 @@ impl<T: Voxel> IsoSet<T> {
     pub fn mapped(isovalues: &[f32], map: ValueMap) -> Self {
         let mut s = Self {
             len: 0,
+            normals: true,
             lo: [T::default(); INLINE_ISOVALUES],
             hi: [T::default(); INLINE_ISOVALUES],
             value: [0.0; INLINE_ISOVALUES],
@@ -353,6 +358,19 @@ impl<T: Voxel> IsoSet<T> {
 
     pub fn is_empty(&self) -> bool {
         self.len == 0
+    }
+
+    /// The same isovalues for hits whose normal nobody reads
+    /// ([`crate::render::IsoScene::prepare_distances`]).
+    pub fn without_normals(mut self) -> Self {
+        self.normals = false;
+        self
+    }
+
+    /// Whether hits need their shading normal.
+    #[inline]
+    pub fn normals(&self) -> bool {
+        self.normals
     }
 
     /// True if some isovalue lies in `[min, max]` (an empty range `min > max` never does).

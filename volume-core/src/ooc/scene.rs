@@ -1336,6 +1336,10 @@ impl<T: Voxel> CellTrace<T> for OocScene<T> {
         &self.shared.frame
     }
 
+    fn normals(isos: &Self::Isovalues) -> bool {
+        isos.set.normals()
+    }
+
     #[inline]
     fn cell_hit<C: CellIntersector, S: Stats>(
         &self,
@@ -1399,6 +1403,12 @@ impl<T: Voxel> IsoScene for OocScene<T> {
 
     fn prepare(&self, isovalues: &[f32]) -> OocIsovalues<T> {
         OocIsovalues::new(&self.shared.meta, isovalues)
+    }
+
+    fn prepare_distances(&self, isovalues: &[f32]) -> OocIsovalues<T> {
+        let mut isos = self.prepare(isovalues);
+        isos.set = isos.set.without_normals();
+        isos
     }
 
     fn world_bounds(&self) -> Aabb {
@@ -1745,6 +1755,14 @@ mod tests {
         let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&cut.depth), bits(&full.depth));
         assert!(cut.counts.rays <= full.counts.rays);
+        // Hits without normals (`prepare_distances`): the same depth map.
+        let flat = RenderSettings {
+            depth_only: true,
+            ..settings.clone()
+        };
+        assert!(!scene.prepare_distances(isos).set.normals());
+        let flat = render(scene, &cam, &flat, &go).unwrap();
+        assert_eq!(bits(&flat.depth), bits(&full.depth));
         (hits, cut.counts.rays < full.counts.rays)
     }
 

@@ -204,7 +204,8 @@ pub fn render_colored_into<S: IsoScene>(
         crate::render::supersample::downsample_into(&fine, k, frame);
         return true;
     }
-    let shadows = settings.shadows && Shader::new(&settings.light).casts_shadows();
+    let shadows =
+        settings.shadows && !settings.depth_only && Shader::new(&settings.light).casts_shadows();
     let c = colorings;
     match (settings.collect_stats, shadows) {
         (false, false) => {
@@ -452,7 +453,11 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     let (frame_w, frame_h) = (span(&tiles_x, width), span(&tiles_y, height));
     let (isovalues, surface_of) = settings.active_isovalues();
     let bounds = scene.world_bounds();
-    let isos = scene.prepare(&isovalues);
+    let isos = if settings.depth_only {
+        scene.prepare_distances(&isovalues)
+    } else {
+        scene.prepare(&isovalues)
+    };
     let diag = if bounds.is_empty() {
         1.0
     } else {
@@ -474,8 +479,18 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
     } else {
         None
     };
-    let opaque = opaque_mask(settings, &surface_of);
-    let peels = settings.max_layers > 1
+    // Depth only: the first hit ends every ray.
+    let opaque = if settings.depth_only {
+        u64::MAX
+    } else {
+        opaque_mask(settings, &surface_of)
+    };
+    let max_layers = if settings.depth_only {
+        1
+    } else {
+        settings.max_layers.max(1)
+    };
+    let peels = max_layers > 1
         && (surface_of.len() > 64 || (opaque.count_ones() as usize) < surface_of.len());
     let ctx = Ctx {
         settings,
@@ -490,14 +505,14 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         surface_of,
         peel: Peel {
             opaque,
-            max_hits: settings.max_layers.clamp(1, MAX_PEELED as u32),
+            max_hits: max_layers.min(MAX_PEELED as u32),
             eps: diag * 1e-5,
         },
         peels,
         shadow_eps: diag * 2e-4,
         scale,
         samples,
-        max_layers: settings.max_layers.max(1),
+        max_layers,
         order: morton_order(),
         tile_x0: tiles_x.start,
         frame_width: frame_w,
@@ -762,6 +777,20 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                     break;
                 };
                 let ray = &sc.rays[k];
+                if settings.depth_only {
+                    sc.shade.push(PendingShade {
+                        k: k as u32,
+                        surface: surface as u32,
+                        cell: hit.cell,
+                        t: hit.t,
+                        normal: Vec3::ZERO,
+                        to_light: Vec3::ZERO,
+                        lit: 1.0,
+                        last: true,
+                        more: false,
+                    });
+                    continue;
+                }
                 let p = ray.at(hit.t);
                 let normal = Shader::facing(hit.normal, ray.dir);
                 let (to_light, light_dist) = ctx.shader.light_dir(p, ray.dir);
@@ -847,6 +876,13 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             let surface = &settings.surfaces[ps.surface as usize];
             if st.layers == 0 {
                 st.depth = ps.t;
+            }
+            if settings.depth_only {
+                st.color = Vec3::from(surface.color);
+                st.transmittance = 0.0;
+                st.layers = 1;
+                st.done = true;
+                continue;
             }
             // The one per-hit branch of colouring.
             let base = match ctx.colorings.get(ps.surface as usize) {
@@ -1589,6 +1625,114 @@ mod tests {
             "{} rays traced, {meet} meet the live box, {hits} hit",
             f.counts.rays
         );
+    }
+
+    /// A depth-only frame (`RenderSettings::depth_only`) has the shaded frame's depth map bit
+    /// for bit, also when the front surface is transparent, clipped, one ray at a time and
+    /// coarse; its pixels are the first hit's flat colour or the background; and the grid's
+    /// hits, prepared without normals, are at the same `t` as with them.
+    #[test]
+    fn depth_only_frames_have_the_shaded_depth_and_flat_colours() {
+        use crate::grid::GridScene;
+        use crate::intersect::Intersector;
+        use crate::kdtree::KdTreeConfig;
+        use crate::math::rng::Rng;
+        use crate::volume::{Grid, VoxelBuffer};
+        let n = 20usize;
+        let grid = Grid::uniform([n; 3], [-1.0; 3], [2.0 / (n - 1) as f64; 3]).unwrap();
+        let mut rng = Rng::new(9);
+        let voxels: Vec<f32> = (0..n * n * n)
+            .map(|q| {
+                let (i, j, k) = (q % n, q / n % n, q / (n * n));
+                let p = Vec3::new(i as f32, j as f32, k as f32) / (n - 1) as f32 * 2.0 - 1.0;
+                p.length() + 0.08 * rng.range_f32(-1.0, 1.0)
+            })
+            .collect();
+        let scene = GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap();
+        let bounds = scene.world_bounds();
+        let (front, back) = ([0.9, 0.5, 0.4], [0.3, 0.8, 0.4]);
+        let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let mut hits = 0;
+        for (k, (packets, scale, clipped)) in [
+            (true, 1, false),
+            (true, 1, true),
+            (false, 1, false),
+            (true, 3, true),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let cam = Camera::orbit(&bounds, 20.0 + 40.0 * k as f32, 25.0, 40.0);
+            let shaded = RenderSettings {
+                width: 48,
+                height: 40,
+                scale,
+                packets,
+                surfaces: vec![
+                    Surface {
+                        opacity: 0.4,
+                        ..Surface::new(0.8, front)
+                    },
+                    Surface::new(0.45, back),
+                ],
+                clips: if clipped {
+                    vec![ClipRegion::Plane {
+                        normal: Vec3::new(0.2, 1.0, 0.3),
+                        offset: 0.2,
+                    }]
+                } else {
+                    vec![]
+                },
+                ..RenderSettings::default()
+            };
+            let flat = RenderSettings {
+                depth_only: true,
+                ..shaded.clone()
+            };
+            let a = render(&scene, &cam, &shaded, &go()).unwrap();
+            let b = render(&scene, &cam, &flat, &go()).unwrap();
+            assert_eq!(bits(&b.depth), bits(&a.depth), "case {k}");
+            let bg = Vec3::from(shaded.background);
+            let bg = [to_u8(bg.x), to_u8(bg.y), to_u8(bg.z), 255];
+            let flat_of = |c: [f32; 3]| [to_u8(c[0]), to_u8(c[1]), to_u8(c[2]), 255];
+            for (px, d) in b.rgba8.chunks_exact(4).zip(&b.depth) {
+                if d.is_finite() {
+                    hits += 1;
+                    assert!(px == flat_of(front) || px == flat_of(back), "{px:?}");
+                } else {
+                    assert_eq!(px, bg);
+                }
+            }
+        }
+        assert!(hits > 600, "{hits} pixels hit");
+        // The hits themselves: the same `t` and surface without the normal.
+        let ray_isos = [0.8f32, 0.45];
+        let (with, without) = (scene.prepare(&ray_isos), scene.prepare_distances(&ray_isos));
+        assert!(with.normals() && !without.normals());
+        let eye = Vec3::new(2.5, 1.9, 2.2);
+        let mut found = 0;
+        for q in 0..400 {
+            let target = Vec3::new(
+                rng.range_f32(-0.6, 0.6),
+                rng.range_f32(-0.6, 0.6),
+                (q % 7) as f32 * 0.1 - 0.3,
+            );
+            let ray = Ray::new(eye, (target - eye).normalize());
+            let a = scene.first_hit_prepared(&ray, 0.0, f32::INFINITY, &with, &mut NoStats);
+            let b = scene.first_hit_prepared(&ray, 0.0, f32::INFINITY, &without, &mut NoStats);
+            assert_eq!(
+                a.map(|h| (h.t.to_bits(), h.surface)),
+                b.map(|h| (h.t.to_bits(), h.surface))
+            );
+            found += usize::from(a.is_some());
+        }
+        assert!(found > 300, "{found} of 400 rays hit");
     }
 
     #[test]

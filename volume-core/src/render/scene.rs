@@ -222,6 +222,14 @@ pub trait IsoScene: Sync {
     /// Prepares the list of active isovalues for traversal.
     fn prepare(&self, isovalues: &[f32]) -> Self::Isovalues;
 
+    /// Prepares the isovalues for a frame that reads only where rays hit (distance and
+    /// surface, [`crate::render::RenderSettings::depth_only`]): the scene may skip the
+    /// shading normal, and the hits' normals are then any unit vector. Defaults to
+    /// [`IsoScene::prepare`]; grids skip the central-difference gradient.
+    fn prepare_distances(&self, isovalues: &[f32]) -> Self::Isovalues {
+        self.prepare(isovalues)
+    }
+
     /// World-space bounds of the data.
     fn world_bounds(&self) -> Aabb;
 
@@ -374,6 +382,10 @@ impl<S: IsoScene> IsoScene for WholeBounds<'_, S> {
 
     fn prepare(&self, isovalues: &[f32]) -> S::Isovalues {
         self.0.prepare(isovalues)
+    }
+
+    fn prepare_distances(&self, isovalues: &[f32]) -> S::Isovalues {
+        self.0.prepare_distances(isovalues)
     }
 
     fn world_bounds(&self) -> Aabb {

@@ -194,6 +194,11 @@ pub struct RenderSettings {
     /// frame then holds just their pixels, as they are in the whole image. Sort-first
     /// distribution renders each rank's chunks this way; `None` is the whole image.
     pub region: Option<PixelRegion>,
+    /// Only where rays first hit (Embree's distance query): each sample's first hit of any
+    /// surface, its depth and its surface's flat colour, with no shading normal, lighting,
+    /// shadows, transparency or colouring by a field. For depth maps, and for timing the
+    /// traversal against ray casters that return distances only.
+    pub depth_only: bool,
 }
 
 /// A half-open rectangle of pixels, `x[0] <= x < x[1]`, `y[0] <= y < y[1]`, row 0 at the top.
@@ -229,6 +234,7 @@ impl Default for RenderSettings {
             packets: true,
             supersample: 1,
             region: None,
+            depth_only: false,
         }
     }
 }

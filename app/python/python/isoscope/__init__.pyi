@@ -241,6 +241,7 @@ class Scene:
         colormap: Optional[str] = None,
         color_range: Optional[Tuple[float, float]] = None,
         scalar_bar: bool = True,
+        depth_only: bool = False,
     ) -> Image:
         """Renders the isosurfaces (default: one at the middle of the value range), as
         ``isoscope render`` does with the same settings; ``supersample=k`` averages k×k
@@ -251,7 +252,11 @@ class Scene:
         array, ``"gradient"`` (a volume's gradient magnitude) or the path of another volume
         with the same dims and geometry. ``color_range=(min, max)`` fixes the values at the
         colormap's ends (default: the field's data range; values outside are clamped);
-        ``scalar_bar=False`` leaves the scalar bar out of the image."""
+        ``scalar_bar=False`` leaves the scalar bar out of the image.
+
+        ``depth_only=True`` finds each pixel's first hit only (``render --depth-only``):
+        the image shows it in its surface's flat colour, with no lighting, shadows or
+        transparency, and ``Image.depth`` is the same as a shaded frame's, faster."""
     def export(
         self,
         path: _Path,
