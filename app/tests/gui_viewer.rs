@@ -357,6 +357,22 @@ fn a_clip_box_reaches_the_renderer_and_toggles() {
 }
 
 #[test]
+fn the_flat_checkbox_reaches_the_renderer() {
+    let (mut h, rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    assert!(!h.state().shown_frame().unwrap().request.options.flat);
+    h.get_by_label("Flat (first hits, no lighting)").click();
+    h.run_steps(2);
+    assert!(h.state().state.render.flat);
+    settle(&mut h);
+    let shown = h.state().shown_frame().unwrap().request.clone();
+    assert!(shown.options.flat);
+    let log = rec.log.lock().unwrap();
+    assert!(log.requests.iter().any(|r| r == &shown));
+}
+
+#[test]
 fn stepping_the_time_slider_refits_prefetches_and_shows_that_step() {
     let (mut h, rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
     step_until(&mut h, "the series", |a| a.data().is_some());
