@@ -363,11 +363,15 @@ impl TetScene {
         faceted
     }
 
-    fn to_hit(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Hit {
+    fn to_hit(&self, ray: &Ray, h: &RawHit, isos: &TetIsovalues) -> Hit {
         Hit {
             t: h.t,
             surface: h.surface,
-            normal: self.hit_normal(ray, h, iso),
+            normal: if isos.normals {
+                self.hit_normal(ray, h, &isos.values)
+            } else {
+                (-ray.dir).normalize_or(Vec3::Z)
+            },
             cell: h.tet,
         }
     }
@@ -552,12 +556,31 @@ fn tet_gradient(verts: &[Vec4], t: &[u32; 4]) -> (DVec3, f64) {
     (m.inverse() * dw, det.abs() / 6.0)
 }
 
-impl IsoScene for TetScene {
-    /// The isovalues as given: the BVH tests them per node and tet as they are.
-    type Isovalues = Vec<f32>;
+/// A tet scene's prepared isovalues: as given (the BVH tests them per node and tet as they
+/// are), and whether hits need the scene's shading normal.
+#[derive(Debug, Clone)]
+pub struct TetIsovalues {
+    pub values: Vec<f32>,
+    /// False for depth-only frames ([`IsoScene::prepare_distances`]): packets take the
+    /// faceted normals their traversal finds anyway, single rays the ray's reverse.
+    pub normals: bool,
+}
 
-    fn prepare(&self, isovalues: &[f32]) -> Vec<f32> {
-        isovalues.to_vec()
+impl IsoScene for TetScene {
+    type Isovalues = TetIsovalues;
+
+    fn prepare(&self, isovalues: &[f32]) -> TetIsovalues {
+        TetIsovalues {
+            values: isovalues.to_vec(),
+            normals: true,
+        }
+    }
+
+    fn prepare_distances(&self, isovalues: &[f32]) -> TetIsovalues {
+        TetIsovalues {
+            normals: false,
+            ..self.prepare(isovalues)
+        }
     }
 
     fn world_bounds(&self) -> Aabb {
@@ -566,16 +589,16 @@ impl IsoScene for TetScene {
 
     /// The box of the BVH's live nodes ([`TetBvh::live_bounds`]), a hair wider so that
     /// rounding of the renderer's slab test never cuts a crossing on its faces.
-    fn live_bounds(&self, isovalues: &Vec<f32>) -> Aabb {
-        let Some((lo, hi)) = self.bvh.live_bounds(isovalues) else {
+    fn live_bounds(&self, isos: &TetIsovalues) -> Aabb {
+        let Some((lo, hi)) = self.bvh.live_bounds(&isos.values) else {
             return Aabb::EMPTY;
         };
         Aabb::new(lo, hi).widened_within(&self.bounds)
     }
 
     /// The boxes of the BVH's live frontier ([`TetBvh::live_boxes`]), each a hair wider.
-    fn live_boxes(&self, isovalues: &Vec<f32>, out: &mut Vec<Aabb>) {
-        self.bvh.live_boxes(isovalues, |lo, hi| {
+    fn live_boxes(&self, isos: &TetIsovalues, out: &mut Vec<Aabb>) {
+        self.bvh.live_boxes(&isos.values, |lo, hi| {
             out.push(Aabb::new(lo, hi).widened_within(&self.bounds));
         });
     }
@@ -585,12 +608,12 @@ impl IsoScene for TetScene {
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &Vec<f32>,
+        isos: &TetIsovalues,
         stats: &mut S,
     ) -> Option<Hit> {
         self.view()
-            .trace_single::<S, false>(ray, t_min, t_max, isovalues, stats)
-            .map(|h| self.to_hit(ray, &h, isovalues))
+            .trace_single::<S, false>(ray, t_min, t_max, &isos.values, stats)
+            .map(|h| self.to_hit(ray, &h, isos))
     }
 
     fn occluded_prepared<S: Stats>(
@@ -598,11 +621,11 @@ impl IsoScene for TetScene {
         ray: &Ray,
         t_min: f32,
         t_max: f32,
-        isovalues: &Vec<f32>,
+        isos: &TetIsovalues,
         stats: &mut S,
     ) -> bool {
         self.view()
-            .trace_single::<S, true>(ray, t_min, t_max, isovalues, stats)
+            .trace_single::<S, true>(ray, t_min, t_max, &isos.values, stats)
             .is_some()
     }
 
@@ -611,12 +634,13 @@ impl IsoScene for TetScene {
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
-        isovalues: &Vec<f32>,
+        isos: &TetIsovalues,
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
+        let isovalues = &isos.values;
         let mut raw = [None; MAX_PACKET];
-        if self.normals == TetNormals::Faceted && self.packet > 1 {
+        if (self.normals == TetNormals::Faceted || !isos.normals) && self.packet > 1 {
             // Faceted normals straight from the traversal (no second extraction per hit).
             // Same packets as `first_hit_packet_raw` below.
             let mut normals = [Vec3::ZERO; MAX_PACKET];
@@ -658,7 +682,7 @@ impl IsoScene for TetScene {
                 stats,
             );
             for k in 0..n {
-                out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isovalues));
+                out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isos));
             }
         }
     }
@@ -771,7 +795,7 @@ mod tests {
                 let mut hits = vec![None; rays.len()];
                 scene.first_hit_packet(&rays, &t_min, &t_max, &iso, &mut hits, &mut NoStats);
                 for (i, (r, h)) in raw.iter().zip(&hits).enumerate() {
-                    let want = r.map(|r| scene.to_hit(&rays[i], &r, &iso));
+                    let want = r.map(|r| scene.to_hit(&rays[i], &r, &scene.prepare(&iso)));
                     assert_eq!(
                         h.map(|h| (h.t.to_bits(), h.surface, bits(h.normal))),
                         want.map(|h| (h.t.to_bits(), h.surface, bits(h.normal))),
