@@ -32,7 +32,7 @@ pub trait CellTrace<T: Voxel> {
     /// The frame world rays are mapped into.
     fn frame(&self) -> &TraversalFrame;
 
-    /// Whether hits of these isovalues need their shading normal ([`IsoSet::normals`]).
+    /// Whether hits of these isovalues need their shading normal ([`crate::intersect::IsoSet::normals`]).
     fn normals(isos: &Self::Isovalues) -> bool;
 
     /// The first cell hit in `[t_min, t_max]` and the block holding its cell.
