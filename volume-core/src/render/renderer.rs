@@ -1526,36 +1526,38 @@ mod tests {
         (rgba8, depth)
     }
 
+    /// Nested shells of a noisy radial field on an `n³` f32 grid over [−1, 1]³: the distance
+    /// from the centre plus uniform noise of ±0.08.
+    fn noisy_shells(n: usize, seed: u64) -> crate::grid::GridScene<f32> {
+        use crate::intersect::Intersector;
+        use crate::kdtree::KdTreeConfig;
+        use crate::math::rng::Rng;
+        use crate::volume::{Grid, VoxelBuffer};
+        let grid = Grid::uniform([n; 3], [-1.0; 3], [2.0 / (n - 1) as f64; 3]).unwrap();
+        let mut rng = Rng::new(seed);
+        let voxels: Vec<f32> = (0..n * n * n)
+            .map(|q| {
+                let (i, j, k) = (q % n, q / n % n, q / (n * n));
+                let p = Vec3::new(i as f32, j as f32, k as f32) / (n - 1) as f32 * 2.0 - 1.0;
+                p.length() + 0.08 * rng.range_f32(-1.0, 1.0)
+            })
+            .collect();
+        crate::grid::GridScene::new(
+            &grid,
+            VoxelBuffer::from_vec(voxels),
+            Intersector::Exact,
+            KdTreeConfig::default(),
+        )
+        .unwrap()
+    }
+
     /// A grid scene, whose packets go on past transparent hits inside their traversal
     /// ([`IsoScene::peeled_hits_packet_prepared`]), renders exactly what new rays shot from
     /// past each layer show: nested shells of a noisy radial field, the outer ones
     /// transparent, with and without clips, for several layer limits.
     #[test]
     fn grid_frames_with_transparent_layers_equal_the_serial_twin() {
-        use crate::grid::GridScene;
-        use crate::intersect::Intersector;
-        use crate::kdtree::KdTreeConfig;
-        use crate::math::rng::Rng;
-        use crate::volume::{Grid, VoxelBuffer};
-        let n = 24usize;
-        let grid = Grid::uniform([n; 3], [-1.0; 3], [2.0 / (n - 1) as f64; 3]).unwrap();
-        let mut rng = Rng::new(5);
-        let mut voxels = Vec::with_capacity(n * n * n);
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    let p = Vec3::new(i as f32, j as f32, k as f32) / (n - 1) as f32 * 2.0 - 1.0;
-                    voxels.push(p.length() + 0.08 * rng.range_f32(-1.0, 1.0));
-                }
-            }
-        }
-        let scene = GridScene::new(
-            &grid,
-            VoxelBuffer::from_vec(voxels),
-            Intersector::Exact,
-            KdTreeConfig::default(),
-        )
-        .unwrap();
+        let scene = noisy_shells(24, 5);
         let bounds = scene.world_bounds();
         let (mut deep, mut cases) = (0u64, 0);
         for (k, max_layers) in [2u32, 4, 7].into_iter().enumerate() {
@@ -1633,28 +1635,9 @@ mod tests {
     /// hits, prepared without normals, are at the same `t` as with them.
     #[test]
     fn depth_only_frames_have_the_shaded_depth_and_flat_colours() {
-        use crate::grid::GridScene;
-        use crate::intersect::Intersector;
-        use crate::kdtree::KdTreeConfig;
         use crate::math::rng::Rng;
-        use crate::volume::{Grid, VoxelBuffer};
-        let n = 20usize;
-        let grid = Grid::uniform([n; 3], [-1.0; 3], [2.0 / (n - 1) as f64; 3]).unwrap();
+        let scene = noisy_shells(20, 9);
         let mut rng = Rng::new(9);
-        let voxels: Vec<f32> = (0..n * n * n)
-            .map(|q| {
-                let (i, j, k) = (q % n, q / n % n, q / (n * n));
-                let p = Vec3::new(i as f32, j as f32, k as f32) / (n - 1) as f32 * 2.0 - 1.0;
-                p.length() + 0.08 * rng.range_f32(-1.0, 1.0)
-            })
-            .collect();
-        let scene = GridScene::new(
-            &grid,
-            VoxelBuffer::from_vec(voxels),
-            Intersector::Exact,
-            KdTreeConfig::default(),
-        )
-        .unwrap();
         let bounds = scene.world_bounds();
         let (front, back) = ([0.9, 0.5, 0.4], [0.3, 0.8, 0.4]);
         let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
