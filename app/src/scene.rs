@@ -49,8 +49,8 @@
 //!   can be switched with [`TetData::set_field`] (a value refit, no rebuild). VTK image data
 //!   with several point arrays likewise (`formats::OpenOptions::field`; default: the active
 //!   scalars): [`SceneData::set_field`] re-reads the file with the other array and refits
-//!   the kd-tree when dims and voxel type stay. Normals
-//!   ([`TetNormals`], faceted by default) and the packet size ([`SceneOptions::packet_rays`],
+//!   the kd-tree when dims and voxel type stay. Normals ([`Normals`]: grids and `.isot`
+//!   smooth by default, meshes faceted) and the mesh packet size ([`SceneOptions::packet_rays`],
 //!   default 256 = 16×16; the renderer orders a tile's rays along a Morton curve, so 4 rays are
 //!   a 2×2 block and 256 a 16×16 block) are per-scene settings.
 //!
@@ -69,13 +69,14 @@ use volume_core::grid::VolumeSampler;
 use volume_core::intersect::Intersector;
 use volume_core::math::Aabb;
 use volume_core::ooc::{AnyOocVolume, OocOptions};
+use volume_core::render::Normals;
 use volume_core::render::SceneVisitor;
 use volume_core::render::{
     Camera, Frame, IsoScene, RenderSettings, Surface, SurfaceColoring, render_colored_into,
 };
 use volume_core::series::TimeSeries;
 use volume_core::stats::Histogram;
-use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetNormals, TetScene};
+use volume_core::tet::{BvhOptions, MAX_PACKET, PointField, TetScene};
 use volume_core::{RectilinearVolume, VoxelType};
 
 /// The three kinds of scene.
@@ -146,8 +147,9 @@ pub struct SceneOptions {
     pub intersector: Intersector,
     /// BVH builder and leaf size (meshes).
     pub bvh: BvhOptions,
-    /// Shading normals (meshes).
-    pub normals: TetNormals,
+    /// Shading normals (`None`: the kind's default, smooth for grids and `.isot`, faceted
+    /// for meshes).
+    pub normals: Option<Normals>,
     /// Rays per packet of the mesh traversal, `1..=256` (256 = 16×16, 4 = 2×2).
     pub packet_rays: usize,
     /// Out-of-core loader options (memory budget).
@@ -162,7 +164,7 @@ impl Default for SceneOptions {
             field: None,
             intersector: Intersector::Exact,
             bvh: BvhOptions::default(),
-            normals: TetNormals::Faceted,
+            normals: None,
             packet_rays: MAX_PACKET,
             ooc: OocOptions::default(),
         }
@@ -376,8 +378,8 @@ pub struct ValueInfo {
 pub struct ViewOptions {
     /// Cell intersector (grids and `.isot`).
     pub intersector: Intersector,
-    /// Shading normals (meshes).
-    pub normals: TetNormals,
+    /// Shading normals (`None`: keep the scene's).
+    pub normals: Option<Normals>,
 }
 
 /// What every kind of data answers for itself. [`AnyScene`] forwards to it, so no caller
@@ -510,7 +512,7 @@ impl AnyScene {
         match self {
             AnyScene::Grid(g) => g.scene.visit(visitor),
             AnyScene::Tet(t) => visitor.visit(&t.scene),
-            AnyScene::Ooc(o) => o.volume.visit_scene(o.intersector, visitor),
+            AnyScene::Ooc(o) => o.volume.visit_scene(o.intersector, o.normals, visitor),
         }
     }
 
@@ -822,7 +824,10 @@ impl GridData {
         control.checkpoint(0.5)?;
         let value_range = volume.value_stats().finite_range;
         control.checkpoint(0.6)?;
-        let scene = AnyGridScene::new(&volume, options.intersector);
+        let mut scene = AnyGridScene::new(&volume, options.intersector);
+        if let Some(normals) = options.normals {
+            scene.set_normals(normals);
+        }
         Ok(Self {
             path: path.to_path_buf(),
             volume,
@@ -1055,16 +1060,20 @@ impl SceneData for GridData {
 
     fn has_view_options(&self, options: &ViewOptions) -> bool {
         self.scene.intersector() == options.intersector
+            && options.normals.is_none_or(|n| n == self.scene.normals())
     }
 
     fn set_view_options(&mut self, options: &ViewOptions) {
         self.scene.set_intersector(options.intersector);
+        if let Some(normals) = options.normals {
+            self.scene.set_normals(normals);
+        }
     }
 
     fn view_options(&self) -> ViewOptions {
         ViewOptions {
             intersector: self.scene.intersector(),
-            normals: TetNormals::default(),
+            normals: Some(self.scene.normals()),
         }
     }
 
@@ -1252,7 +1261,9 @@ impl TetData {
         let mut scene = TetScene::from_parts(points, mesh.tets.clone(), values, options.bvh)
             .with_context(|| format!("{}: building the BVH", path.display()))?;
         let build_time = t0.elapsed();
-        scene.set_normals(options.normals);
+        if let Some(normals) = options.normals {
+            scene.set_normals(normals);
+        }
         scene.set_packet_size(options.packet_rays);
         Ok(Self {
             path: path.to_path_buf(),
@@ -1313,7 +1324,7 @@ impl TetData {
         Ok(())
     }
 
-    pub fn set_normals(&mut self, normals: TetNormals) {
+    pub fn set_normals(&mut self, normals: Normals) {
         self.scene.set_normals(normals);
     }
 
@@ -1479,17 +1490,19 @@ impl SceneData for TetData {
     }
 
     fn has_view_options(&self, options: &ViewOptions) -> bool {
-        self.scene.normals() == options.normals
+        options.normals.is_none_or(|n| n == self.scene.normals())
     }
 
     fn set_view_options(&mut self, options: &ViewOptions) {
-        self.scene.set_normals(options.normals);
+        if let Some(normals) = options.normals {
+            self.scene.set_normals(normals);
+        }
     }
 
     fn view_options(&self) -> ViewOptions {
         ViewOptions {
             intersector: Intersector::default(),
-            normals: self.scene.normals(),
+            normals: Some(self.scene.normals()),
         }
     }
 
@@ -1565,6 +1578,7 @@ pub struct OocData {
     path: PathBuf,
     volume: AnyOocVolume,
     intersector: Intersector,
+    normals: Normals,
     open_time: Duration,
 }
 
@@ -1579,6 +1593,7 @@ impl OocData {
             path: path.to_path_buf(),
             volume,
             intersector: options.intersector,
+            normals: options.normals.unwrap_or(Normals::Smooth),
             open_time: t0.elapsed(),
         })
     }
@@ -1636,7 +1651,7 @@ impl OocData {
     ) -> Option<(Frame, usize)> {
         self.set_isovalues(&settings.active_isovalues().0);
         self.volume
-            .render_with_level(self.intersector, camera, settings, cancel)
+            .render_with_level(self.intersector, self.normals, camera, settings, cancel)
     }
 }
 
@@ -1698,17 +1713,20 @@ impl SceneData for OocData {
     }
 
     fn has_view_options(&self, options: &ViewOptions) -> bool {
-        self.intersector == options.intersector
+        self.intersector == options.intersector && options.normals.is_none_or(|n| n == self.normals)
     }
 
     fn set_view_options(&mut self, options: &ViewOptions) {
         self.intersector = options.intersector;
+        if let Some(normals) = options.normals {
+            self.normals = normals;
+        }
     }
 
     fn view_options(&self) -> ViewOptions {
         ViewOptions {
             intersector: self.intersector,
-            normals: TetNormals::default(),
+            normals: Some(self.normals),
         }
     }
 

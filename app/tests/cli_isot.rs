@@ -93,6 +93,16 @@ fn finest_level_render_equals_the_in_core_render() {
         b.as_raw(),
         "same shading, transparency included"
     );
+
+    // Faceted normals reach the out-of-core frame as the in-core one: the same picture,
+    // other than the smooth one.
+    let (fa_png, fb_png) = (dir.path().join("fa.png"), dir.path().join("fb.png"));
+    render(&vol, &fa_png, &["--normals", "faceted"]);
+    render(&isot, &fb_png, &["--normals", "faceted"]);
+    let fa = image::open(&fa_png).unwrap().to_rgba8();
+    let fb = image::open(&fb_png).unwrap().to_rgba8();
+    assert_eq!(fa.as_raw(), fb.as_raw(), "faceted: the same shading");
+    assert_ne!(fa.as_raw(), a.as_raw(), "faceted normals shade otherwise");
 }
 
 #[test]

@@ -336,6 +336,84 @@ fn info_prints_values_as_their_type_reads() {
 
 /// `render --depth-only` writes the shaded render's depth map bit for bit and an image of
 /// flat colours; `bench --depth-only` says so in its JSON; neither takes shadows.
+/// `--normals faceted` on a volume: the same hits (depth map bit for bit), shaded with the
+/// cells' own normals (another picture); `bench` reports the normals of its frames.
+#[test]
+fn faceted_normals_shade_the_same_hits_of_a_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sphere_volume(dir.path());
+    let render = |tag: &str, extra: &[&str]| {
+        let (png, npy) = (
+            dir.path().join(format!("{tag}.png")),
+            dir.path().join(format!("{tag}.npy")),
+        );
+        let mut args = vec![
+            "render",
+            s(&vol),
+            "--iso",
+            "0.6:#3080ff",
+            "--orbit",
+            "30,20",
+            "--size",
+            "40x30",
+            "-o",
+            s(&png),
+            "--depth-out",
+            s(&npy),
+        ];
+        args.extend_from_slice(extra);
+        ok(&args);
+        (image::open(&png).unwrap().to_rgba8(), read_depth(&npy))
+    };
+    let (smooth_png, smooth) = render("smooth", &[]);
+    let (faceted_png, faceted) = render("faceted", &["--normals", "faceted"]);
+    let (again_png, _) = render("again", &["--normals", "smooth"]);
+    let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&faceted), bits(&smooth));
+    assert!(smooth.iter().filter(|d| d.is_finite()).count() > 40);
+    assert_eq!(
+        again_png.as_raw(),
+        smooth_png.as_raw(),
+        "smooth is the default"
+    );
+    let differ = smooth_png
+        .pixels()
+        .zip(faceted_png.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(differ > 0, "faceted normals shade otherwise");
+    let err = fails(&[
+        "render",
+        s(&vol),
+        "--normals",
+        "bumpy",
+        "-o",
+        s(&dir.path().join("x.png")),
+    ]);
+    assert!(err.contains("faceted or smooth"), "{err}");
+
+    let normals_of = |extra: &[&str]| {
+        let mut args = vec![
+            "bench",
+            s(&vol),
+            "--iso",
+            "0.6",
+            "--size",
+            "16x16",
+            "--frames",
+            "1",
+            "--skip-dda",
+            "--skip-single",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let v: serde_json::Value = serde_json::from_str(&ok(&args)).unwrap();
+        v["normals"].as_str().unwrap().to_string()
+    };
+    assert_eq!(normals_of(&[]), "smooth");
+    assert_eq!(normals_of(&["--normals", "faceted"]), "faceted");
+}
+
 #[test]
 fn depth_only_renders_the_same_depth_unshaded() {
     let dir = tempfile::tempdir().unwrap();

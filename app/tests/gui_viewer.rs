@@ -27,7 +27,7 @@ use isoscope::ui::backend::{
 };
 use isoscope::ui::commands::Command;
 use isoscope::ui::jobs::JobControl;
-use isoscope::ui::state::{KeepSide, RawLayoutState, ViewerState};
+use isoscope::ui::state::{KeepSide, NormalsChoice, RawLayoutState, ViewerState};
 use volume_core::math::Aabb;
 
 #[derive(Default)]
@@ -373,6 +373,29 @@ fn the_flat_checkbox_reaches_the_renderer() {
 }
 
 #[test]
+fn the_normals_radio_of_a_volume_reaches_the_renderer() {
+    let (mut h, rec) = harness(vec![]);
+    step_until(&mut h, "the default sample", |a| a.data().is_some());
+    settle(&mut h);
+    assert_eq!(h.state().data().unwrap().kind, DataKindLabel::Grid);
+    assert_eq!(
+        h.state().shown_frame().unwrap().request.options.normals,
+        None,
+        "the volume's own default (smooth) until the user picks"
+    );
+    h.get_by_label_contains("smooth: central differences");
+    click_in_side_panel(&mut h, "Faceted");
+    h.run_steps(2);
+    assert_eq!(h.state().state.render.normals, Some(NormalsChoice::Faceted));
+    settle(&mut h);
+    let shown = h.state().shown_frame().unwrap().request.clone();
+    assert_eq!(shown.options.normals, Some(NormalsChoice::Faceted));
+    h.get_by_label_contains("faceted: each cell's own surface normal");
+    let log = rec.log.lock().unwrap();
+    assert!(log.requests.iter().any(|r| r == &shown));
+}
+
+#[test]
 fn stepping_the_time_slider_refits_prefetches_and_shows_that_step() {
     let (mut h, rec) = harness(vec![PathBuf::from("/virtual/series.test")]);
     step_until(&mut h, "the series", |a| a.data().is_some());
@@ -683,7 +706,7 @@ fn min_max(values: &[f32]) -> (f64, f64) {
 #[test]
 fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
     use isoscope::scene::{SceneOptions, open_scene};
-    use volume_core::tet::TetNormals;
+    use volume_core::render::Normals;
 
     let dir = tempfile::tempdir().unwrap();
     let (files, step_values) = write_tet_series(dir.path());
@@ -699,20 +722,17 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
         "the session records the series pattern"
     );
     settle(&mut h);
-    assert!(!h.state().state.render.smooth_normals, "faceted by default");
+    assert_eq!(h.state().state.render.normals, None, "the mesh's default");
+    h.get_by_label_contains("faceted: each isopolygon's plane");
 
     // Normals: the radio button reaches the renderer.
     click_in_side_panel(&mut h, "Smooth");
     h.run_steps(2);
-    assert!(h.state().state.render.smooth_normals);
+    assert_eq!(h.state().state.render.normals, Some(NormalsChoice::Smooth));
     settle(&mut h);
-    assert!(
-        h.state()
-            .shown_frame()
-            .unwrap()
-            .request
-            .options
-            .smooth_normals
+    assert_eq!(
+        h.state().shown_frame().unwrap().request.options.normals,
+        Some(NormalsChoice::Smooth)
     );
 
     // Steps 1 and 2 are prefetched while step 0 is shown.
@@ -738,7 +758,7 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
         );
         let shown = &app.shown_frame().unwrap().request;
         assert_eq!(shown.step, step, "a frame of the new step arrived");
-        assert!(shown.options.smooth_normals);
+        assert_eq!(shown.options.normals, Some(NormalsChoice::Smooth));
         // The data section names the step shown (not the step the mesh was opened at).
         h.run_steps(1);
         h.get_by_label_contains(&format!("step {step} of 4"));
@@ -748,7 +768,7 @@ fn a_tet_mesh_series_switches_normals_and_refits_per_step() {
             &pattern,
             &SceneOptions {
                 step,
-                normals: TetNormals::Smooth,
+                normals: Some(Normals::Smooth),
                 ..SceneOptions::default()
             },
         )
@@ -1094,7 +1114,7 @@ fn view_presets_follow_the_anatomical_frame_and_reach_the_renderer() {
         ("Right", -Vec3::X),
         ("Superior", Vec3::Z),
     ] {
-        h.get_by_label(label).click();
+        click_in_side_panel(&mut h, label);
         h.run_steps(2);
         settle(&mut h);
         let shown = h.state().shown_frame().unwrap().request.clone();
@@ -1107,7 +1127,7 @@ fn view_presets_follow_the_anatomical_frame_and_reach_the_renderer() {
     }
     // The marker is on by default and can be switched off (it is saved with the session).
     assert!(h.state().state.render.orientation_marker);
-    h.get_by_label("Orientation marker").click();
+    click_in_side_panel(&mut h, "Orientation marker");
     h.run_steps(2);
     assert!(!h.state().state.render.orientation_marker);
 }

@@ -135,7 +135,7 @@ fn grids_meshes_series_steps_and_isot_files_render_as_in_one_process() {
     );
     renders_identically(d, "bl_%03d.nrrd", &["--step", "2"]);
     isoscope(d, &["preprocess", "ph.nrrd", "-o", "ph.isot"]);
-    renders_identically(d, "ph.isot", &["--iso", "500"]);
+    renders_identically(d, "ph.isot", &["--iso", "500", "--normals", "faceted"]);
 }
 
 #[test]

@@ -1000,8 +1000,8 @@ mod tests {
         use volume_core::grid::AnyGridScene;
         use volume_core::intersect::Intersector;
         use volume_core::math::Ray;
-        use volume_core::render::SceneVisitor;
         use volume_core::render::{Hit, IsoScene, NoStats};
+        use volume_core::render::{Normals, SceneVisitor};
 
         struct Trace(Vec<Ray>, [f32; 1]);
         impl SceneVisitor for Trace {
@@ -1035,7 +1035,7 @@ mod tests {
             }
         }
         let a = incore.visit(Trace(rays.clone(), iso));
-        let b = ooc.visit_scene(Intersector::Exact, Trace(rays, iso));
+        let b = ooc.visit_scene(Intersector::Exact, Normals::Smooth, Trace(rays, iso));
         assert!(a.iter().filter(|h| h.is_some()).count() > 100);
         assert_eq!(a, b);
     }

@@ -29,10 +29,10 @@ use data_samples::sparse_blobs::{BIG_DIMS, Blob, big_test_blobs, write_sparse_nr
 use volume_core::intersect::Intersector;
 use volume_core::math::Ray;
 use volume_core::ooc::{LoadProgress, OocOptions};
-use volume_core::render::SceneVisitor;
 use volume_core::render::{
     Camera, Hit, IsoScene, NoStats, RenderSettings, Surface, render as render_frame,
 };
+use volume_core::render::{Normals, SceneVisitor};
 
 const ISO: f32 = 100.5;
 
@@ -154,10 +154,11 @@ fn more_than_two_to_the_32_voxels_preprocess_and_render_at_the_right_positions()
     let meta = vol.meta().clone();
     assert_eq!(meta.layout.dims(), BIG_DIMS);
     assert!(meta.layout.voxel_count() > 1 << 32);
-    let bounds = vol.visit_scene(Intersector::Exact, BoundsOf);
+    let bounds = vol.visit_scene(Intersector::Exact, Normals::Smooth, BoundsOf);
     let camera = Camera::orbit(&bounds, 35.0, 25.0, 40.0);
     // Time to first image: open + one frame from the top treelet alone.
-    let (first_frame, first_depth) = vol.visit_scene(Intersector::Exact, Frame(camera, 640));
+    let (first_frame, first_depth) =
+        vol.visit_scene(Intersector::Exact, Normals::Smooth, Frame(camera, 640));
     let first_hits = first_depth.iter().filter(|d| d.is_finite()).count();
     println!(
         "time to first image: open {open_secs:.3} s + frame {first_frame:.3} s at level 0 \
@@ -200,7 +201,7 @@ fn more_than_two_to_the_32_voxels_preprocess_and_render_at_the_right_positions()
     let mut best = f64::INFINITY;
     let mut depth = Vec::new();
     for _ in 0..3 {
-        let (s, d) = vol.visit_scene(Intersector::Exact, Frame(camera, 640));
+        let (s, d) = vol.visit_scene(Intersector::Exact, Normals::Smooth, Frame(camera, 640));
         best = best.min(s);
         depth = d;
     }
@@ -286,7 +287,7 @@ fn more_than_two_to_the_32_voxels_preprocess_and_render_at_the_right_positions()
             .iter()
             .map(|o| Ray::new(glam::Vec3::from_array(o.map(|x| x as f32)), glam::Vec3::Z)),
     );
-    let hits = vol.visit_scene(Intersector::Exact, Trace(all));
+    let hits = vol.visit_scene(Intersector::Exact, Normals::Smooth, Trace(all));
     for (k, (bi, o, d)) in expect.iter().enumerate() {
         let h = hits[k].unwrap_or_else(|| panic!("ray {k} at blob {bi} missed"));
         let p = [0, 1, 2].map(|a| o[a] + d[a] * f64::from(h.t));

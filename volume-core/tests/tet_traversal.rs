@@ -6,9 +6,9 @@ use glam::Vec3;
 use proptest::prelude::*;
 use volume_core::math::Ray;
 use volume_core::math::rng::Rng;
-use volume_core::render::{CountStats, IsoScene, NoStats};
+use volume_core::render::{CountStats, IsoScene, NoStats, Normals};
 use volume_core::tet::{
-    BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetNormals, TetScene, lattice_tets,
+    BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetScene, lattice_tets,
 };
 
 /// An `n³`-point grid over `[0, n−1]³`, jittered by `jitter`, split into 6 tets per cube;
@@ -547,7 +547,7 @@ fn degenerate_tets_and_nan_values_do_not_panic() {
         )
         .unwrap();
         scene.validate().unwrap();
-        scene.set_normals(TetNormals::Smooth);
+        scene.set_normals(Normals::Smooth);
         let mut rng = Rng::new(5);
         let mut rays = random_rays(&mut rng, 200, 2.0, false);
         rays.push(Ray::new(Vec3::new(0.2, 0.2, -1.0), Vec3::ZERO));
@@ -610,7 +610,7 @@ fn smooth_normals_follow_the_gradient() {
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     let g = Vec3::new(1.0, 2.0, 4.0).normalize();
     let rays = random_rays(&mut rng, 200, 4.0, true);
-    for normals in [TetNormals::Faceted, TetNormals::Smooth] {
+    for normals in [Normals::Faceted, Normals::Smooth] {
         scene.set_normals(normals);
         let mut n_hits = 0;
         for r in &rays {
@@ -627,10 +627,7 @@ fn smooth_normals_follow_the_gradient() {
     let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
     let rays = random_rays(&mut rng, 300, 8.0, true);
     let mut err = [0f32; 2];
-    for (k, normals) in [TetNormals::Faceted, TetNormals::Smooth]
-        .into_iter()
-        .enumerate()
-    {
+    for (k, normals) in [Normals::Faceted, Normals::Smooth].into_iter().enumerate() {
         scene.set_normals(normals);
         for r in &rays {
             if let Some(h) = scene.first_hit(r, 0.0, f32::INFINITY, &[3.0], &mut NoStats) {
@@ -794,7 +791,7 @@ fn renderer_depth_matches_brute_force() {
     let (w, h) = (48u32, 40u32);
     let iso = [2.6f32, 4.0];
     let go = AtomicBool::new(false);
-    for (packets, normals) in [(true, TetNormals::Faceted), (false, TetNormals::Smooth)] {
+    for (packets, normals) in [(true, Normals::Faceted), (false, Normals::Smooth)] {
         scene.set_normals(normals);
         let settings = RenderSettings {
             width: w,
@@ -839,7 +836,7 @@ fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
     let mut skin = Surface::new(2.2, [0.9, 0.5, 0.4]);
     skin.opacity = 0.4;
     let go = AtomicBool::new(false);
-    for normals in [TetNormals::Faceted, TetNormals::Smooth] {
+    for normals in [Normals::Faceted, Normals::Smooth] {
         scene.set_normals(normals);
         let settings = RenderSettings {
             width: w,

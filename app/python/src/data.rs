@@ -40,6 +40,9 @@ pub struct Loaded {
     /// The file, or a name such as `<numpy array>` (in messages and `info()["file"]`).
     pub path: PathBuf,
     pub source: Source,
+    /// The normals the data was opened with (its kind's default or `open(normals=...)`):
+    /// what a `Scene` made without `normals` draws.
+    pub opened_normals: Option<volume_core::render::Normals>,
     scene: RwLock<AnyScene>,
 }
 
@@ -48,6 +51,7 @@ impl Loaded {
         Arc::new(Self {
             path,
             source,
+            opened_normals: scene.data().view_options().normals,
             scene: RwLock::new(scene),
         })
     }
@@ -358,7 +362,7 @@ impl Mesh {
         let options = SceneOptions {
             field,
             bvh: mesh_args.bvh_options().py_err()?,
-            normals: mesh_args.normals.unwrap_or_default(),
+            normals: mesh_args.normals,
             ..SceneOptions::default()
         };
         let path = PathBuf::from("<numpy mesh>");
@@ -451,7 +455,8 @@ fn text_or_numbers(v: &Bound<'_, PyAny>, sep: &str) -> PyResult<String> {
 ///
 /// Raw layout keywords mirror the CLI flags: `dims`, `voxel_type`, `endian`, `spacing`,
 /// `header_bytes`, `origin`; also `series` (DICOM), `field`, `step`, `intersector`,
-/// `bvh`, `leaf_size`, `normals` (meshes) and `budget_mb` (`.isot`).
+/// `normals` (faceted|smooth, any data), `bvh`, `leaf_size` (meshes) and `budget_mb`
+/// (`.isot`).
 #[pyfunction]
 #[pyo3(signature = (path, *, dims=None, voxel_type=None, endian=None, spacing=None, header_bytes=None, origin=None, series=None, field=None, step=None, intersector=None, bvh=None, leaf_size=None, normals=None, budget_mb=None))]
 pub fn open(

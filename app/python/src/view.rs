@@ -1,7 +1,7 @@
 //! `Scene` (render, batched ray queries, time steps), `Camera` and `Image`.
 //!
 //! A scene shares its data object's loaded [`AnyScene`] and keeps its own view options
-//! (intersector; normals and BVH for meshes): they are applied to the shared scene before
+//! (intersector; normals; BVH for meshes): they are applied to the shared scene before
 //! each call that traces rays, which costs nothing when they already match (switching the
 //! intersector or the normals is free; another BVH builder is a rebuild). Isovalues are per
 //! call, as in the viewer: changing them re-renders without rebuilding anything.
@@ -245,8 +245,8 @@ impl Scene {
 #[pymethods]
 impl Scene {
     /// A scene of `data` (a `Volume`, `Mesh`, `OocVolume` or `Series`). `intersector`:
-    /// exact, linear, neubauer[:N], schwarze, reference; meshes: `bvh` (bih|sah),
-    /// `leaf_size`, `normals` (faceted|smooth). `threads`: rayon threads (default: all).
+    /// exact, linear, neubauer[:N], schwarze, reference; `normals` (faceted|smooth; default:
+    /// smooth for volumes, faceted for meshes); meshes: `bvh` (bih|sah), `leaf_size`. `threads`: rayon threads (default: all).
     #[new]
     #[pyo3(signature = (data, intersector=None, bvh=None, leaf_size=None, normals=None, threads=None))]
     fn new(
@@ -267,19 +267,19 @@ impl Scene {
                 loaded.path.display()
             )));
         }
-        if !is_tet && (bvh.is_some() || leaf_size.is_some() || normals.is_some()) {
+        if !is_tet && (bvh.is_some() || leaf_size.is_some()) {
             return Err(value_error(format!(
-                "bvh, leaf_size and normals apply to tetrahedral meshes; {} is a {} data set",
+                "bvh and leaf_size apply to tetrahedral meshes; {} is a {} data set",
                 loaded.path.display(),
                 loaded.read().kind()
             )));
         }
-        let current = match loaded.read().as_tet() {
-            Some(t) => (t.scene().normals(), Some(t.scene().bvh().options())),
-            None => (volume_core::tet::TetNormals::default(), None),
-        };
+        let current = (
+            loaded.opened_normals,
+            loaded.read().as_tet().map(|t| t.scene().bvh().options()),
+        );
         let normals = match normals {
-            Some(n) => isoscope::cli::open_args::parse_normals(n).map_err(value_error)?,
+            Some(n) => Some(isoscope::cli::open_args::parse_normals(n).map_err(value_error)?),
             None => current.0,
         };
         let bvh = if bvh.is_some() || leaf_size.is_some() {

@@ -102,6 +102,22 @@ def test_depth_only_has_the_shaded_depth_and_matches_the_cli(cli_render, tmp_pat
         scene.render(isos, size=SIZE, depth_only=True, shadows=True)
 
 
+def test_faceted_normals_of_a_volume_shade_the_same_hits_as_the_cli(cli_render, tmp_path):
+    vol = isoscope.open(PHANTOM)
+    smooth = isoscope.Scene(vol).render([500], orbit=(40, 15), size=SIZE)
+    faceted = isoscope.Scene(vol, normals="faceted").render([500], orbit=(40, 15), size=SIZE)
+    np.testing.assert_array_equal(faceted.depth, smooth.depth)
+    assert np.isfinite(faceted.depth).any()
+    assert (faceted.rgba != smooth.rgba).any()
+    png, _ = cli_render(PHANTOM, "--iso", "500", "--orbit", "40,15", "--size", SIZE_ARG, "--normals", "faceted")
+    assert png_bytes_of(faceted, tmp_path) == png
+    # A scene made later without normals keeps its own (the volume's default, smooth).
+    again = isoscope.Scene(vol).render([500], orbit=(40, 15), size=SIZE)
+    np.testing.assert_array_equal(again.rgba, smooth.rgba)
+    with pytest.raises(ValueError, match="faceted or smooth"):
+        isoscope.Scene(vol, normals="bumpy")
+
+
 def test_supersampling_averages_the_rays_of_a_larger_image_as_the_cli_does(cli_render, tmp_path):
     scene = isoscope.Scene(isoscope.open(PHANTOM))
     cam = isoscope.Camera(eye=(300, -250, 120), target=(0, 0, 0), up=(0, 0, 1), vfov_deg=35)

@@ -281,6 +281,9 @@ pub struct BenchReport {
     pub intersector: String,
     /// `--depth-only`: the frames found first hits and depths, unshaded.
     pub depth_only: bool,
+    /// Shading normals of the frames: `faceted` or `smooth` (`--normals`; unused with
+    /// `--depth-only`).
+    pub normals: String,
     /// Build time of the acceleration structure, s (kd-tree, BVH; `.isot`: open time).
     pub build_seconds: f64,
     /// Acceleration structure bytes (kd-tree, BVH nodes; `.isot`: resident treelets).
@@ -512,6 +515,13 @@ fn base_report(args: &Args, s: &Setup) -> BenchReport {
         threads: rayon::current_num_threads(),
         intersector: args.intersector.unwrap_or_default().to_string(),
         depth_only: args.depth_only,
+        normals: s
+            .scene
+            .data()
+            .view_options()
+            .normals
+            .map_or("", |n| n.name())
+            .to_string(),
         build_seconds: s.scene.build_time().as_secs_f64(),
         tree_bytes: s.scene.structure_bytes(),
         data_bytes: 0,

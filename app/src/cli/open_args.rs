@@ -14,7 +14,8 @@
 //! DICOM inputs (a folder, a `DICOMDIR`, a file and its series) that hold several series need
 //! `--series N|UID` (`isoscope info PATH` lists them).
 //!
-//! [`MeshArgs`] (tetrahedral meshes: `--bvh`, `--leaf-size`, `--packet`, `--normals`) and
+//! [`MeshArgs`] (tetrahedral meshes: `--bvh`, `--leaf-size`, `--packet`; and `--normals`,
+//! which applies to every kind) and
 //! [`OocArgs`] (`.isot` files: `--level-timeout`, `--budget-mb`) are shared by `render` and
 //! `bench`; [`scene_options`] turns them into [`crate::scene::SceneOptions`] and rejects flags
 //! that do not apply to the kind of file opened.
@@ -27,7 +28,8 @@ use formats::raw::{Endian, RawLayout};
 use volume_core::VoxelType;
 use volume_core::intersect::Intersector;
 use volume_core::ooc::OocOptions;
-use volume_core::tet::{BvhBuilder, BvhOptions, TetNormals};
+use volume_core::render::Normals;
+use volume_core::tet::{BvhBuilder, BvhOptions};
 
 use crate::scene::{SceneKind, SceneOptions, detect_kind};
 
@@ -139,19 +141,17 @@ pub struct MeshArgs {
     /// 1 = one ray at a time.
     #[arg(long, value_name = "SIDE", value_parser = parse_packet_side, help_heading = "Tetrahedral meshes")]
     pub packet: Option<usize>,
-    /// Meshes: shading normals, faceted (the isopolygon's plane; default) or smooth
-    /// (interpolated vertex gradients).
-    #[arg(long, value_name = "faceted|smooth", value_parser = parse_normals, help_heading = "Tetrahedral meshes")]
-    pub normals: Option<TetNormals>,
+    /// Shading normals, every kind of file: faceted (the gradient of the hit cell's own
+    /// interpolant: a tet's isopolygon plane, a voxel cell's trilinear surface; meshes'
+    /// default) or smooth (vertex gradients interpolated; grids' and .isot default).
+    #[arg(long, value_name = "faceted|smooth", value_parser = parse_normals)]
+    pub normals: Option<Normals>,
 }
 
 impl MeshArgs {
-    /// True if any mesh flag was given.
+    /// True if any flag for meshes only was given (`--normals` applies to every kind).
     pub fn any(&self) -> bool {
-        self.bvh.is_some()
-            || self.leaf_size.is_some()
-            || self.packet.is_some()
-            || self.normals.is_some()
+        self.bvh.is_some() || self.leaf_size.is_some() || self.packet.is_some()
     }
 
     /// The BVH options these flags describe (validated).
@@ -231,7 +231,7 @@ pub fn scene_options(
     };
     if kind != SceneKind::Tet && mesh.any() {
         bail!(
-            "--bvh, --leaf-size, --packet and --normals apply to tetrahedral meshes; {} is {what}",
+            "--bvh, --leaf-size and --packet apply to tetrahedral meshes; {} is {what}",
             file.display()
         );
     }
@@ -274,7 +274,7 @@ pub fn scene_options(
         field: open.field.clone(),
         intersector: intersector.unwrap_or_default(),
         bvh: mesh.bvh_options()?,
-        normals: mesh.normals.unwrap_or_default(),
+        normals: mesh.normals,
         packet_rays: mesh.packet_rays(),
         ooc: ooc.ooc_options()?,
     })
@@ -295,10 +295,10 @@ pub fn parse_packet_side(s: &str) -> Result<usize, String> {
     }
 }
 
-pub fn parse_normals(s: &str) -> Result<TetNormals, String> {
+pub fn parse_normals(s: &str) -> Result<Normals, String> {
     match s.trim().to_ascii_lowercase().as_str() {
-        "faceted" | "flat" => Ok(TetNormals::Faceted),
-        "smooth" => Ok(TetNormals::Smooth),
+        "faceted" | "flat" => Ok(Normals::Faceted),
+        "smooth" => Ok(Normals::Smooth),
         _ => Err(format!("`{s}`: expected faceted or smooth")),
     }
 }
@@ -441,7 +441,7 @@ mod tests {
         assert!(parse_endian("middle").is_err());
         assert_eq!(parse_packet_side("2"), Ok(2));
         assert!(parse_packet_side("3").unwrap_err().contains("16x16"));
-        assert_eq!(parse_normals("Smooth"), Ok(TetNormals::Smooth));
+        assert_eq!(parse_normals("Smooth"), Ok(Normals::Smooth));
         assert!(parse_bvh("median").is_err());
     }
 

@@ -217,7 +217,7 @@ impl Cluster {
             step: scene.step(),
             field: scene.data().field().map(str::to_string),
             intersector: view.intersector,
-            smooth_normals: view.normals == volume_core::tet::TetNormals::Smooth,
+            smooth_normals: view.normals == Some(volume_core::render::Normals::Smooth),
             levels: scene.as_ooc().map_or(0, |o| o.status().loaded_levels),
             level_wait_ms: self.level_wait.as_millis() as u64,
         };

@@ -168,14 +168,14 @@ fn a_grid_and_a_mesh_render_across_ranks_exactly_as_in_one_process() {
 }
 
 #[test]
-fn a_time_step_and_the_intersector_reach_every_rank() {
+fn a_time_step_the_intersector_and_the_normals_reach_every_rank() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_grid(dir.path(), 3);
     let mut scene = open_scene(&path, &SceneOptions::default()).unwrap();
     scene.set_step(2).unwrap();
     let view = crate::scene::ViewOptions {
         intersector: volume_core::intersect::Intersector::Linear,
-        normals: volume_core::tet::TetNormals::Faceted,
+        normals: Some(volume_core::render::Normals::Faceted),
     };
     scene.data_mut().set_view_options(&view);
     let (lo, hi) = scene.value_range().unwrap();

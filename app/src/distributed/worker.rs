@@ -124,11 +124,11 @@ fn prepare(scene: &mut AnyScene, job: &FrameJob) -> anyhow::Result<()> {
     }
     let view = ViewOptions {
         intersector: job.intersector,
-        normals: if job.smooth_normals {
-            volume_core::tet::TetNormals::Smooth
+        normals: Some(if job.smooth_normals {
+            volume_core::render::Normals::Smooth
         } else {
-            volume_core::tet::TetNormals::Faceted
-        },
+            volume_core::render::Normals::Faceted
+        }),
     };
     if !scene.data().has_view_options(&view) {
         scene.data_mut().set_view_options(&view);

@@ -195,7 +195,7 @@ impl ViewerApp {
     pub(super) fn open_choices(&self) -> OpenChoices {
         OpenChoices {
             intersector: self.state.render.intersector,
-            smooth_normals: self.state.render.smooth_normals,
+            normals: self.state.render.normals,
             field: self.state.field.clone(),
             dicom_series: None,
             spacing: self.state.tiff_spacing,

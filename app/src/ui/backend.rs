@@ -23,8 +23,8 @@ pub use crate::scene::{StepSwitch, ValueInfo};
 use super::camera::CameraPose;
 use super::jobs::JobControl;
 use super::state::{
-    ClipBoxState, ClipPlaneState, IntersectorChoice, RawLayoutState, RenderOptions, SurfaceState,
-    ViewerState,
+    ClipBoxState, ClipPlaneState, IntersectorChoice, NormalsChoice, RawLayoutState, RenderOptions,
+    SurfaceState, ViewerState,
 };
 
 /// Everything a frame depends on besides the scene.
@@ -260,11 +260,11 @@ impl LoadedData {
 }
 
 /// How to build a scene (the render options that are fixed at build time are only initial
-/// values: the intersector and tet normals are switched in place later).
+/// values: the intersector and the normals are switched in place later).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct OpenChoices {
     pub intersector: IntersectorChoice,
-    pub smooth_normals: bool,
+    pub normals: Option<NormalsChoice>,
     /// Tet meshes: the point array to draw if the mesh has it (a restored session's).
     pub field: Option<String>,
     /// DICOM inputs of several series: the one picked (its number or SeriesInstanceUID).

@@ -15,10 +15,10 @@ use std::sync::{Arc, Mutex, RwLock};
 
 use glam::Vec3;
 use volume_core::intersect::Intersector;
+use volume_core::render::Normals;
 use volume_core::render::{
     Camera, ClipRegion, Keep, Light, LightKind, Projection, RenderSettings, Surface,
 };
-use volume_core::tet::TetNormals;
 use volume_core::{RectilinearVolume, VoxelType};
 
 use super::backend::{
@@ -27,7 +27,7 @@ use super::backend::{
 };
 use super::camera::{bounding_radius, clip_box_world};
 use super::jobs::JobControl;
-use super::state::{IntersectorChoice, KeepSide, RawLayoutState};
+use super::state::{IntersectorChoice, KeepSide, NormalsChoice, RawLayoutState};
 use crate::scene::{
     AnyScene, GridData, OpenControl, SceneOptions, ViewOptions, is_cancelled, open_scene_with,
 };
@@ -172,15 +172,14 @@ fn poisoned<T>(_: T) -> String {
 fn view_options(request: &RenderRequest) -> ViewOptions {
     ViewOptions {
         intersector: intersector(request.options.intersector),
-        normals: normals(request.options.smooth_normals),
+        normals: request.options.normals.map(normals),
     }
 }
 
-fn normals(smooth: bool) -> TetNormals {
-    if smooth {
-        TetNormals::Smooth
-    } else {
-        TetNormals::Faceted
+pub fn normals(choice: NormalsChoice) -> Normals {
+    match choice {
+        NormalsChoice::Faceted => Normals::Faceted,
+        NormalsChoice::Smooth => Normals::Smooth,
     }
 }
 
@@ -193,7 +192,7 @@ impl CorePrepared {
         }
     }
 
-    /// Switches the intersector and tet normals in place when the request asks for others.
+    /// Switches the intersector and the normals in place when the request asks for others.
     fn apply_options(&self, request: &RenderRequest) -> Result<(), String> {
         let want = view_options(request);
         if !self
@@ -439,7 +438,7 @@ fn scene_options(
             ..formats::OpenOptions::default()
         },
         intersector: intersector(choices.intersector),
-        normals: normals(choices.smooth_normals),
+        normals: choices.normals.map(normals),
         ..SceneOptions::default()
     })
 }

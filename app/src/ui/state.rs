@@ -280,6 +280,14 @@ impl Default for ClipPlaneState {
     }
 }
 
+/// Shading normals ([`volume_core::render::Normals`]): faceted (the gradient of the hit
+/// cell's own interpolant) or smooth (vertex gradients interpolated).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum NormalsChoice {
+    Faceted,
+    Smooth,
+}
+
 /// The intersectors of thesis seed 004 §7.2.2 plus the f64 reference.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 pub enum IntersectorChoice {
@@ -343,9 +351,9 @@ pub struct RenderOptions {
     pub light_elevation_deg: f32,
     /// Linear RGB in [0, 1].
     pub background: [f32; 3],
-    /// Tet meshes: normals interpolated from vertex gradients (thesis 004 §8.3) instead of
-    /// the isopolygon's plane (the default: the data as computed).
-    pub smooth_normals: bool,
+    /// Shading normals; `None` until the user picks: the data's default (meshes faceted,
+    /// the data as computed; grids smooth, central differences, thesis 004 §6.4).
+    pub normals: Option<NormalsChoice>,
     /// The orientation marker in the viewport's corner.
     pub orientation_marker: bool,
     /// Anti-aliasing of the still (full-resolution) frame: `k × k` samples per pixel; 1 is
@@ -365,7 +373,7 @@ impl Default for RenderOptions {
             light_azimuth_deg: 0.0,
             light_elevation_deg: 0.0,
             background: [0.08, 0.08, 0.10],
-            smooth_normals: false,
+            normals: None,
             orientation_marker: true,
             supersample: 1,
             flat: false,

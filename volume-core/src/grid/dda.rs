@@ -13,7 +13,7 @@ use crate::intersect::{
     CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame, intersect_cell,
 };
 use crate::math::{Aabb, Ray};
-use crate::render::{Hit, IsoScene, Stats};
+use crate::render::{Hit, IsoScene, Normals, Stats};
 use crate::volume::ValueMap;
 use crate::voxel::Voxel;
 
@@ -195,7 +195,7 @@ impl<T: Voxel> CellTrace<T> for DdaScene<'_, T> {
         self.frame
     }
 
-    fn normals(isos: &Self::Isovalues) -> bool {
+    fn normals(isos: &Self::Isovalues) -> Option<Normals> {
         isos.normals()
     }
 

@@ -6,12 +6,12 @@
 
 use glam::Vec3;
 
-use super::normals::normal_at;
+use super::normals::{faceted_normal_at, normal_at};
 use crate::intersect::{CellHit, CellIntersector, LocalRay, TraversalFrame};
 use crate::kdtree::packet::LaneNext;
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
 use crate::math::Ray;
-use crate::render::{Hit, MAX_PEELED, Peel, Stats};
+use crate::render::{Hit, MAX_PEELED, Normals, Peel, Stats};
 use crate::voxel::Voxel;
 
 /// The voxel block a cell hit lies in (the grid's, or an out-of-core treelet's), which its
@@ -32,8 +32,9 @@ pub trait CellTrace<T: Voxel> {
     /// The frame world rays are mapped into.
     fn frame(&self) -> &TraversalFrame;
 
-    /// Whether hits of these isovalues need their shading normal ([`crate::intersect::IsoSet::normals`]).
-    fn normals(isos: &Self::Isovalues) -> bool;
+    /// The shading normal hits of these isovalues need, if any
+    /// ([`crate::intersect::IsoSet::normals`]).
+    fn normals(isos: &Self::Isovalues) -> Option<Normals>;
 
     /// The first cell hit in `[t_min, t_max]` and the block holding its cell.
     fn cell_hit<C: CellIntersector, S: Stats>(
@@ -269,9 +270,9 @@ impl LaneLayers {
     }
 }
 
-/// Turns a cell hit into a [`Hit`] with a world-space normal: the central-difference one
-/// when `normal` is set, else the ray's reverse (a frame of hit distances only; the
-/// gradient is about a tenth of a shaded frame, `docs/benchmarks.md`).
+/// Turns a cell hit into a [`Hit`] with a world-space normal of kind `normal`
+/// ([`super::normals`]), else the ray's reverse (a frame of hit distances only; the
+/// smooth gradient is about a tenth of a shaded frame, `docs/benchmarks.md`).
 pub fn make_hit<T: Voxel>(
     frame: &TraversalFrame,
     voxels: &[T],
@@ -279,16 +280,21 @@ pub fn make_hit<T: Voxel>(
     local: &LocalRay,
     world: &Ray,
     h: CellHit,
-    normal: bool,
+    normal: Option<Normals>,
 ) -> Hit {
     let reverse = || (-world.dir).normalize_or(Vec3::Z);
-    let normal = if normal {
-        let (lo, hi) = frame.cell_box(h.cell);
-        let p = local.origin + local.dir * h.t;
-        let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
-        normal_at(frame, voxels, dims, h.cell, uvw).unwrap_or_else(reverse)
-    } else {
-        reverse()
+    let normal = match normal {
+        Some(kind) => {
+            let (lo, hi) = frame.cell_box(h.cell);
+            let p = local.origin + local.dir * h.t;
+            let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
+            match kind {
+                Normals::Smooth => normal_at(frame, voxels, dims, h.cell, uvw),
+                Normals::Faceted => faceted_normal_at(frame, voxels, dims, h.cell, uvw),
+            }
+            .unwrap_or_else(reverse)
+        }
+        None => reverse(),
     };
     Hit {
         t: h.t,

@@ -27,7 +27,7 @@ use crate::kdtree::{
     KdTree, KdTreeConfig, LIVE_COVER_NODES, PACKET_WIDTH, packet_compatible, with_packet_stack,
 };
 use crate::math::{Aabb, Ray};
-use crate::render::{Hit, HitField, IsoScene, Peel, PeeledHits, SceneVisitor, Stats};
+use crate::render::{Hit, HitField, IsoScene, Normals, Peel, PeeledHits, SceneVisitor, Stats};
 use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
 use crate::voxel::Voxel;
 
@@ -39,6 +39,8 @@ pub struct GridScene<T: Voxel> {
     frame: TraversalFrame,
     tree: KdTree<T>,
     intersector: Intersector,
+    /// Shading normals of hits (smooth unless set).
+    normals: Normals,
     /// Isovalues are physical; the voxels stored (a volume's [`ValueMap`]).
     value_map: ValueMap,
 }
@@ -76,6 +78,7 @@ impl<T: Voxel> GridScene<T> {
             frame,
             tree,
             intersector,
+            normals: Normals::Smooth,
             value_map: ValueMap::IDENTITY,
         })
     }
@@ -96,6 +99,15 @@ impl<T: Voxel> GridScene<T> {
 
     pub fn set_intersector(&mut self, intersector: Intersector) {
         self.intersector = intersector;
+    }
+
+    pub fn normals(&self) -> Normals {
+        self.normals
+    }
+
+    /// Changing the normals costs nothing: frames prepare them ([`IsoScene::prepare`]).
+    pub fn set_normals(&mut self, normals: Normals) {
+        self.normals = normals;
     }
 
     pub fn tree(&self) -> &KdTree<T> {
@@ -234,7 +246,7 @@ impl<T: Voxel> CellTrace<T> for GridScene<T> {
         &self.frame
     }
 
-    fn normals(isos: &Self::Isovalues) -> bool {
+    fn normals(isos: &Self::Isovalues) -> Option<Normals> {
         isos.normals()
     }
 
@@ -290,7 +302,7 @@ impl<T: Voxel> IsoScene for GridScene<T> {
     type Isovalues = IsoSet<T>;
 
     fn prepare(&self, isovalues: &[f32]) -> IsoSet<T> {
-        IsoSet::mapped(isovalues, self.value_map)
+        IsoSet::mapped(isovalues, self.value_map).with_normals(self.normals)
     }
 
     fn prepare_distances(&self, isovalues: &[f32]) -> IsoSet<T> {
@@ -505,6 +517,15 @@ impl AnyGridScene {
         dispatch_grid_scene!(self, s => s.set_intersector(intersector));
     }
 
+    pub fn normals(&self) -> Normals {
+        dispatch_grid_scene!(self, s => s.normals())
+    }
+
+    /// Changing the normals costs nothing (no rebuild).
+    pub fn set_normals(&mut self, normals: Normals) {
+        dispatch_grid_scene!(self, s => s.set_normals(normals));
+    }
+
     pub fn memory_bytes(&self) -> usize {
         dispatch_grid_scene!(self, s => s.memory_bytes())
     }
@@ -537,7 +558,9 @@ impl AnyGridScene {
         if refit {
             StepSwitch::Refit
         } else {
+            let normals = self.normals();
             *self = Self::new(volume, self.intersector());
+            self.set_normals(normals);
             StepSwitch::Rebuild
         }
     }

@@ -38,6 +38,7 @@ use std::str::FromStr;
 
 use glam::Vec3;
 
+use crate::render::Normals;
 use crate::volume::ValueMap;
 use crate::voxel::{Voxel, VoxelType};
 
@@ -308,12 +309,13 @@ pub const INLINE_ISOVALUES: usize = 16;
 /// real `c` iff they contain both) and `lo = hi = c` for floats. Isovalues outside the
 /// type's range or NaN can never be hit and are dropped.
 ///
-/// The set also says whether hits need a shading normal (on unless
-/// [`IsoSet::without_normals`]): a frame that reads only hit distances skips it.
+/// The set also says which shading normal hits need (smooth unless
+/// [`IsoSet::with_normals`] says otherwise), or none ([`IsoSet::without_normals`]): a frame
+/// that reads only hit distances skips it.
 #[derive(Debug, Clone)]
 pub struct IsoSet<T: Voxel> {
     len: usize,
-    normals: bool,
+    normals: Option<Normals>,
     lo: [T; INLINE_ISOVALUES],
     hi: [T; INLINE_ISOVALUES],
     value: [f32; INLINE_ISOVALUES],
@@ -331,7 +333,7 @@ impl<T: Voxel> IsoSet<T> {
     pub fn mapped(isovalues: &[f32], map: ValueMap) -> Self {
         let mut s = Self {
             len: 0,
-            normals: true,
+            normals: Some(Normals::Smooth),
             lo: [T::default(); INLINE_ISOVALUES],
             hi: [T::default(); INLINE_ISOVALUES],
             value: [0.0; INLINE_ISOVALUES],
@@ -363,13 +365,19 @@ impl<T: Voxel> IsoSet<T> {
     /// The same isovalues for hits whose normal nobody reads
     /// ([`crate::render::IsoScene::prepare_distances`]).
     pub fn without_normals(mut self) -> Self {
-        self.normals = false;
+        self.normals = None;
         self
     }
 
-    /// Whether hits need their shading normal.
+    /// The same isovalues for hits with `normals` ([`crate::grid::GridScene::set_normals`]).
+    pub fn with_normals(mut self, normals: Normals) -> Self {
+        self.normals = Some(normals);
+        self
+    }
+
+    /// The shading normal hits need, if any.
     #[inline]
-    pub fn normals(&self) -> bool {
+    pub fn normals(&self) -> Option<Normals> {
         self.normals
     }
 

@@ -54,7 +54,7 @@ use crate::kdtree::packet::{
 use crate::kdtree::step::{Step, ray_step, take_step};
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
 use crate::math::{Aabb, Ray, union_of_cell_boxes};
-use crate::render::{Hit, IsoScene, Stats};
+use crate::render::{Hit, IsoScene, Normals, Stats};
 use crate::voxel::Voxel;
 
 /// A treelet in memory with its local frame (positions of its voxel block).
@@ -687,6 +687,7 @@ impl<T: Voxel> OocVolume<T> {
             shared: self.shared.clone(),
             snap,
             intersector,
+            normals: Normals::Smooth,
             stamp,
         }
     }
@@ -819,6 +820,8 @@ pub struct OocScene<T: Voxel> {
     shared: Arc<Shared<T>>,
     snap: Arc<Snapshot<T>>,
     intersector: Intersector,
+    /// Shading normals of hits (smooth unless [`OocScene::with_normals`]).
+    normals: Normals,
     /// This frame's use stamp (least-recently-used eviction of demand-paged treelets).
     stamp: u64,
 }
@@ -894,6 +897,12 @@ const LIVE_BOX_NODES: usize = 1 << 15;
 const LIVE_COVER_NODES: usize = 1 << 12;
 
 impl<T: Voxel> OocScene<T> {
+    /// This frame with `normals` for its hits (smooth by default).
+    pub fn with_normals(mut self, normals: Normals) -> Self {
+        self.normals = normals;
+        self
+    }
+
     /// The inclusive finest-cell box around every cell this frame's traversal can find a
     /// crossing in (the in-core [`crate::kdtree::KdTree::live_cell_box`]), or `None` when
     /// there is none: the union of [`OocScene::live_cell_boxes`] at [`LIVE_BOX_NODES`].
@@ -1336,7 +1345,7 @@ impl<T: Voxel> CellTrace<T> for OocScene<T> {
         &self.shared.frame
     }
 
-    fn normals(isos: &Self::Isovalues) -> bool {
+    fn normals(isos: &Self::Isovalues) -> Option<Normals> {
         isos.set.normals()
     }
 
@@ -1402,7 +1411,9 @@ impl<T: Voxel> IsoScene for OocScene<T> {
     type Isovalues = OocIsovalues<T>;
 
     fn prepare(&self, isovalues: &[f32]) -> OocIsovalues<T> {
-        OocIsovalues::new(&self.shared.meta, isovalues)
+        let mut isos = OocIsovalues::new(&self.shared.meta, isovalues);
+        isos.set = isos.set.with_normals(self.normals);
+        isos
     }
 
     fn prepare_distances(&self, isovalues: &[f32]) -> OocIsovalues<T> {
@@ -1541,9 +1552,10 @@ impl AnyOocVolume {
     pub fn visit_scene<V: crate::render::SceneVisitor>(
         &self,
         intersector: Intersector,
+        normals: Normals,
         visitor: V,
     ) -> V::Output {
-        dispatch_ooc!(self, v => visitor.visit(&v.scene(intersector)))
+        dispatch_ooc!(self, v => visitor.visit(&v.scene(intersector).with_normals(normals)))
     }
 
     /// The finest level a frame rendered now could reach (what
@@ -1558,12 +1570,13 @@ impl AnyOocVolume {
     pub fn render_with_level(
         &self,
         intersector: Intersector,
+        normals: Normals,
         camera: &crate::render::Camera,
         settings: &crate::render::RenderSettings,
         cancel: &AtomicBool,
     ) -> Option<(crate::render::Frame, usize)> {
         dispatch_ooc!(self, v => {
-            let scene = v.scene(intersector);
+            let scene = v.scene(intersector).with_normals(normals);
             let frame = crate::render::render(&scene, camera, settings, cancel)?;
             Some((frame, scene.level()))
         })
@@ -1760,7 +1773,7 @@ mod tests {
             depth_only: true,
             ..settings.clone()
         };
-        assert!(!scene.prepare_distances(isos).set.normals());
+        assert!(scene.prepare_distances(isos).set.normals().is_none());
         let flat = render(scene, &cam, &flat, &go).unwrap();
         assert_eq!(bits(&flat.depth), bits(&full.depth));
         (hits, cut.counts.rays < full.counts.rays)

@@ -34,8 +34,8 @@ pub use renderer::{
     Frame, RayCounts, SurfaceColoring, TILE, render, render_colored_into, render_into,
 };
 pub use scene::{
-    CountStats, Hit, HitField, IsoScene, MAX_PEELED, NoStats, Peel, PeeledHits, SceneVisitor,
-    Stats, TraversalCounts, WholeBounds,
+    CountStats, Hit, HitField, IsoScene, MAX_PEELED, NoStats, Normals, Peel, PeeledHits,
+    SceneVisitor, Stats, TraversalCounts, WholeBounds,
 };
 pub use settings::{
     ClipRegion, ColorBy, ColorField, Keep, Light, LightKind, MAX_IMAGE_SIDE, PixelRegion,

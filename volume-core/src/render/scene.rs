@@ -12,6 +12,30 @@ use glam::Vec3;
 
 use crate::math::{Aabb, Ray};
 
+/// Shading normals of hits. Both are gradients of the data's interpolant; they differ in
+/// where the gradient is taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Normals {
+    /// The gradient of the hit cell's own interpolant: the exact normal of the surface drawn,
+    /// which turns at cell faces. A tet's isopolygon plane (the data as computed, thesis
+    /// seed 004 §8.6; meshes' default); a grid cell's trilinear surface.
+    Faceted,
+    /// Gradients at the vertices, interpolated to the hit: continuous across cells. Tets:
+    /// `M = N·V⁻¹` (§8.3); grids: central differences at the cell's corners, blended
+    /// trilinearly (§6.4; grids' default).
+    Smooth,
+}
+
+impl Normals {
+    /// The name the command line and the Python package take (`faceted`, `smooth`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Faceted => "faceted",
+            Self::Smooth => "smooth",
+        }
+    }
+}
+
 /// The first intersection of a ray with one of the active isosurfaces.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {

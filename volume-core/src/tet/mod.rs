@@ -29,6 +29,6 @@ pub use mesh::{
     split_wedge,
 };
 pub use probe::{TetProbe, probe_tets};
-pub use scene::{TetField, TetIsovalues, TetNormals, TetScene};
+pub use scene::{TetField, TetIsovalues, TetScene};
 pub use steps::{StepScheme, TetStep, TetSteps};
 pub use traverse::{MAX_PACKET, RawHit};

@@ -2,7 +2,7 @@
 //! renderer's [`IsoScene`] contract (thesis 004 ch. 8).
 //!
 //! - Hits report `t`, the isovalue index and a unit normal: by default the *faceted* normal
-//!   of the isopolygon (the data "as computed", §8.6); with [`TetNormals::Smooth`] the
+//!   of the isopolygon (the data "as computed", §8.6); with [`Normals::Smooth`] the
 //!   normal interpolated by the per-tet matrix `M = N·V⁻¹` (§8.3), where `N` holds the
 //!   vertex gradients (volume-weighted averages of the incident tets' gradients) and `V`
 //!   the homogeneous vertex positions, so `M·(p, 1)` is the barycentric blend of the vertex
@@ -28,17 +28,7 @@ use super::mesh::{TetError, TetMesh};
 use super::mt;
 use super::traverse::{MAX_PACKET, RawHit, TetView};
 use crate::math::{Aabb, Ray};
-use crate::render::{Hit, HitField, IsoScene, Stats};
-
-/// Shading normals of tet isosurfaces.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum TetNormals {
-    /// The isopolygon's plane (default: data as computed).
-    #[default]
-    Faceted,
-    /// Interpolated vertex gradients via `M = N·V⁻¹` (thesis §8.3).
-    Smooth,
-}
+use crate::render::{Hit, HitField, IsoScene, Normals, Stats};
 
 /// A tetrahedral mesh ready for isosurface ray tracing (module docs).
 #[derive(Debug, Clone)]
@@ -53,7 +43,7 @@ pub struct TetScene {
     /// `point_order[vertex] = index in the input point list`.
     point_order: Vec<u32>,
     pub(crate) bvh: TetBvh,
-    normals: TetNormals,
+    normals: Normals,
     /// Rows of `M` per tet (leaf order), only for smooth normals.
     normal_rows: Vec<[Vec4; 3]>,
     packet: usize,
@@ -126,7 +116,7 @@ impl TetScene {
             tets,
             order,
             bvh,
-            normals: TetNormals::Faceted,
+            normals: Normals::Faceted,
             normal_rows: Vec::new(),
             packet: MAX_PACKET,
             bounds: Aabb::EMPTY,
@@ -226,12 +216,12 @@ impl TetScene {
         Ok(())
     }
 
-    pub fn set_normals(&mut self, normals: TetNormals) {
+    pub fn set_normals(&mut self, normals: Normals) {
         self.normals = normals;
         self.update_normals();
     }
 
-    pub fn normals(&self) -> TetNormals {
+    pub fn normals(&self) -> Normals {
         self.normals
     }
 
@@ -295,7 +285,7 @@ impl TetScene {
     }
 
     fn update_normals(&mut self) {
-        if self.normals == TetNormals::Faceted {
+        if self.normals == Normals::Faceted {
             self.normal_rows = Vec::new();
             return;
         }
@@ -351,7 +341,7 @@ impl TetScene {
     /// Shading normal of a raw hit (module docs).
     fn hit_normal(&self, ray: &Ray, h: &RawHit, iso: &[f32]) -> Vec3 {
         let faceted = self.view().faceted_normal(h, iso);
-        if self.normals == TetNormals::Smooth
+        if self.normals == Normals::Smooth
             && let Some(rows) = self.normal_rows.get(h.tet as usize)
         {
             let p = ray.at(h.t).extend(1.0);
@@ -640,7 +630,7 @@ impl IsoScene for TetScene {
     ) {
         let isovalues = &isos.values;
         let mut raw = [None; MAX_PACKET];
-        if (self.normals == TetNormals::Faceted || !isos.normals) && self.packet > 1 {
+        if (self.normals == Normals::Faceted || !isos.normals) && self.packet > 1 {
             // Faceted normals straight from the traversal (no second extraction per hit).
             // Same packets as `first_hit_packet_raw` below.
             let mut normals = [Vec3::ZERO; MAX_PACKET];

@@ -16,7 +16,8 @@ use rayon::prelude::*;
 
 use super::bvh::BvhOptions;
 use super::mesh::TetError;
-use super::scene::{TetNormals, TetScene};
+use super::scene::TetScene;
+use crate::render::Normals;
 
 /// One step's data.
 #[derive(Debug, Clone, PartialEq)]
@@ -152,7 +153,7 @@ impl TetSteps {
     }
 
     /// Sets the normal mode of every scene.
-    pub fn set_normals(&mut self, normals: TetNormals) {
+    pub fn set_normals(&mut self, normals: Normals) {
         for s in &mut self.scenes {
             s.set_normals(normals);
         }
