@@ -334,37 +334,48 @@ fn info_prints_values_as_their_type_reads() {
     assert!(edges.iter().all(|e| e.parse::<i64>().is_ok()), "{edges:?}");
 }
 
-/// `render --depth-only` writes the shaded render's depth map bit for bit and an image of
-/// flat colours; `bench --depth-only` says so in its JSON; neither takes shadows.
+/// `render` of the sphere volume at iso 0.6 in blue, orbit 30°/20°, 40×30, with `extra`
+/// flags: the picture and the depth map (of that shape), written as `tag.png` and `tag.npy`
+/// in `dir`.
+fn render_blue_sphere(
+    dir: &Path,
+    vol: &Path,
+    tag: &str,
+    extra: &[&str],
+) -> (image::RgbaImage, Vec<f32>) {
+    let (png, npy) = (
+        dir.join(format!("{tag}.png")),
+        dir.join(format!("{tag}.npy")),
+    );
+    let mut args = vec![
+        "render",
+        s(vol),
+        "--iso",
+        "0.6:#3080ff",
+        "--orbit",
+        "30,20",
+        "--size",
+        "40x30",
+        "-o",
+        s(&png),
+        "--depth-out",
+        s(&npy),
+    ];
+    args.extend_from_slice(extra);
+    ok(&args);
+    let ((rows, cols), depth) =
+        isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap()).unwrap();
+    assert_eq!((rows, cols), (30, 40));
+    (image::open(&png).unwrap().to_rgba8(), depth)
+}
+
 /// `--normals faceted` on a volume: the same hits (depth map bit for bit), shaded with the
 /// cells' own normals (another picture); `bench` reports the normals of its frames.
 #[test]
 fn faceted_normals_shade_the_same_hits_of_a_volume() {
     let dir = tempfile::tempdir().unwrap();
     let vol = sphere_volume(dir.path());
-    let render = |tag: &str, extra: &[&str]| {
-        let (png, npy) = (
-            dir.path().join(format!("{tag}.png")),
-            dir.path().join(format!("{tag}.npy")),
-        );
-        let mut args = vec![
-            "render",
-            s(&vol),
-            "--iso",
-            "0.6:#3080ff",
-            "--orbit",
-            "30,20",
-            "--size",
-            "40x30",
-            "-o",
-            s(&png),
-            "--depth-out",
-            s(&npy),
-        ];
-        args.extend_from_slice(extra);
-        ok(&args);
-        (image::open(&png).unwrap().to_rgba8(), read_depth(&npy))
-    };
+    let render = |tag: &str, extra: &[&str]| render_blue_sphere(dir.path(), &vol, tag, extra);
     let (smooth_png, smooth) = render("smooth", &[]);
     let (faceted_png, faceted) = render("faceted", &["--normals", "faceted"]);
     let (again_png, _) = render("again", &["--normals", "smooth"]);
@@ -414,36 +425,13 @@ fn faceted_normals_shade_the_same_hits_of_a_volume() {
     assert_eq!(normals_of(&["--normals", "faceted"]), "faceted");
 }
 
+/// `render --depth-only` writes the shaded render's depth map bit for bit and an image of
+/// flat colours; `bench --depth-only` says so in its JSON; neither takes shadows.
 #[test]
 fn depth_only_renders_the_same_depth_unshaded() {
     let dir = tempfile::tempdir().unwrap();
     let vol = sphere_volume(dir.path());
-    let render = |tag: &str, extra: &[&str]| {
-        let (png, npy) = (
-            dir.path().join(format!("{tag}.png")),
-            dir.path().join(format!("{tag}.npy")),
-        );
-        let mut args = vec![
-            "render",
-            s(&vol),
-            "--iso",
-            "0.6:#3080ff",
-            "--orbit",
-            "30,20",
-            "--size",
-            "40x30",
-            "-o",
-            s(&png),
-            "--depth-out",
-            s(&npy),
-        ];
-        args.extend_from_slice(extra);
-        ok(&args);
-        let ((rows, cols), depth) =
-            isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap()).unwrap();
-        assert_eq!((rows, cols), (30, 40));
-        (image::open(&png).unwrap().to_rgba8(), depth)
-    };
+    let render = |tag: &str, extra: &[&str]| render_blue_sphere(dir.path(), &vol, tag, extra);
     let (shaded_png, shaded) = render("shaded", &[]);
     let (flat_png, flat) = render("flat", &["--depth-only"]);
     let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
