@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 
-use super::normals::{faceted_normal_at, normal_at};
+use super::normals::{faceted_normal_at, normal_at, normals_x8};
 use crate::intersect::{CellHit, CellIntersector, LocalRay, TraversalFrame};
 use crate::kdtree::packet::LaneNext;
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
@@ -21,6 +21,14 @@ pub struct CellBlock<'a, T: Voxel> {
     pub frame: &'a TraversalFrame,
     pub voxels: &'a [T],
     pub dims: [usize; 3],
+}
+
+impl<T: Voxel> CellBlock<'_, T> {
+    /// Whether `other` is this very block (the same frame and voxels, not equal copies).
+    #[inline]
+    pub(crate) fn same_as(&self, other: &Self) -> bool {
+        std::ptr::eq(self.frame, other.frame) && std::ptr::eq(self.voxels, other.voxels)
+    }
 }
 
 /// A structure that finds the first cell hit of a ray in traversal units.
@@ -190,19 +198,40 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
             }
         }
     }
+    // Runs of hit lanes in one block (the whole packet in core) get their hits together.
     let normals = G::normals(isos);
-    for i in 0..n {
-        out[i] = cell_hits[i].map(|(h, block)| {
-            make_hit(
-                block.frame,
-                block.voxels,
-                block.dims,
-                &local[i],
-                &rays[i],
-                h,
-                normals,
-            )
-        });
+    let mut lanes = [0usize; PACKET_WIDTH];
+    let mut hits = [CellHit::NONE; PACKET_WIDTH];
+    let mut i = 0;
+    while i < n {
+        let Some((_, block)) = cell_hits[i] else {
+            out[i] = None;
+            i += 1;
+            continue;
+        };
+        let mut m = 0;
+        while i < n {
+            match cell_hits[i] {
+                None => out[i] = None,
+                Some((h, b)) if b.same_as(&block) => {
+                    (lanes[m], hits[m]) = (i, h);
+                    m += 1;
+                }
+                Some(_) => break,
+            }
+            i += 1;
+        }
+        make_hits_in_block(
+            &block,
+            local,
+            rays,
+            &lanes[..m],
+            &hits[..m],
+            normals,
+            |j, hit| {
+                out[lanes[j]] = Some(hit);
+            },
+        );
     }
 }
 
@@ -217,16 +246,11 @@ pub(crate) struct LaneLayers {
 
 impl LaneLayers {
     pub(crate) fn new(peel: &Peel) -> Self {
-        let none = CellHit {
-            t: f32::INFINITY,
-            surface: 0,
-            cell: [0; 3],
-        };
         Self {
             peel: *peel,
             cap: peel.cap(),
             n: [0; PACKET_WIDTH],
-            hits: [[none; MAX_PEELED]; PACKET_WIDTH],
+            hits: [[CellHit::NONE; MAX_PEELED]; PACKET_WIDTH],
         }
     }
 
@@ -282,24 +306,73 @@ pub fn make_hit<T: Voxel>(
     h: CellHit,
     normal: Option<Normals>,
 ) -> Hit {
-    let reverse = || (-world.dir).normalize_or(Vec3::Z);
-    let normal = match normal {
-        Some(kind) => {
-            let (lo, hi) = frame.cell_box(h.cell);
-            let p = local.origin + local.dir * h.t;
-            let uvw = ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE);
-            match kind {
-                Normals::Smooth => normal_at(frame, voxels, dims, h.cell, uvw),
-                Normals::Faceted => faceted_normal_at(frame, voxels, dims, h.cell, uvw),
-            }
-            .unwrap_or_else(reverse)
+    let normal = normal.and_then(|kind| {
+        let uvw = hit_uvw(frame, local, &h);
+        match kind {
+            Normals::Smooth => normal_at(frame, voxels, dims, h.cell, uvw),
+            Normals::Faceted => faceted_normal_at(frame, voxels, dims, h.cell, uvw),
         }
-        None => reverse(),
-    };
+    });
+    hit_facing(h, normal, world)
+}
+
+/// Where hit `h` lies in its cell, in `[0, 1]³` (what the normals read).
+#[inline]
+fn hit_uvw(frame: &TraversalFrame, local: &LocalRay, h: &CellHit) -> Vec3 {
+    let (lo, hi) = frame.cell_box(h.cell);
+    let p = local.origin + local.dir * h.t;
+    ((p - lo) / (hi - lo)).clamp(Vec3::ZERO, Vec3::ONE)
+}
+
+/// The [`Hit`] of `h` with `normal`, else the ray's reverse.
+#[inline]
+fn hit_facing(h: CellHit, normal: Option<Vec3>, world: &Ray) -> Hit {
     Hit {
         t: h.t,
         surface: h.surface,
-        normal,
+        normal: normal.unwrap_or_else(|| (-world.dir).normalize_or(Vec3::Z)),
         cell: 0,
+    }
+}
+
+/// [`make_hit`] of the cell hits `hits[j]` of the rays `lanes[j]`, all in `block`, handed to
+/// `put(j, hit)`: smooth normals 8 at a time side by side ([`normals_x8`], the same normals
+/// bit for bit), other kinds one by one.
+pub(crate) fn make_hits_in_block<T: Voxel>(
+    block: &CellBlock<'_, T>,
+    local: &[LocalRay],
+    rays: &[Ray],
+    lanes: &[usize],
+    hits: &[CellHit],
+    normal: Option<Normals>,
+    mut put: impl FnMut(usize, Hit),
+) {
+    if normal != Some(Normals::Smooth) {
+        for (j, (&i, &h)) in lanes.iter().zip(hits).enumerate() {
+            let (f, v, d) = (block.frame, block.voxels, block.dims);
+            put(j, make_hit(f, v, d, &local[i], &rays[i], h, normal));
+        }
+        return;
+    }
+    for (c, (lanes, hits)) in lanes.chunks(8).zip(hits.chunks(8)).enumerate() {
+        let m = lanes.len();
+        let mut cells = [[0usize; 3]; 8];
+        let mut uvw = [Vec3::ZERO; 8];
+        for (j, (&i, h)) in lanes.iter().zip(hits).enumerate() {
+            cells[j] = h.cell;
+            uvw[j] = hit_uvw(block.frame, &local[i], h);
+        }
+        let mut normals = [None; 8];
+        normals_x8(
+            block.frame,
+            block.voxels,
+            block.dims,
+            &cells[..m],
+            &uvw[..m],
+            &mut normals[..m],
+        );
+        for (j, (&i, &h)) in lanes.iter().zip(hits).enumerate() {
+            put(c * 8 + j, hit_facing(h, normals[j], &rays[i]));
+        }
     }
 }

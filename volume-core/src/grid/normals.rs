@@ -16,6 +16,7 @@
 //! surface coloured by gradient magnitude shows ([`super::sample`]).
 
 use glam::{DVec3, Vec3};
+use wide::f32x8;
 
 use crate::intersect::TraversalFrame;
 use crate::voxel::{Voxel, VoxelType};
@@ -135,6 +136,127 @@ fn gradient_interior_f32<T: Voxel>(
         return None;
     }
     Some(grad)
+}
+
+/// [`normal_at`] of up to 8 hits of one block side by side (`out[i]` for `cells[i]` at
+/// `uvw[i]`). Lanes whose cell takes the interior `f32` path run its operations, and
+/// [`TraversalFrame::world_normal_f32`]'s, in the same order in `f32x8` lanes, so every
+/// normal is `normal_at`'s bit for bit (Rust fuses no `a * b + c`); the other lanes, and a
+/// lane whose gradient or world normal needs a fallback, call `normal_at` itself. The
+/// samples are still loaded lane by lane: what the lanes share is the arithmetic (the six
+/// divisions and two normalisations of a scalar normal among it).
+pub fn normals_x8<T: Voxel>(
+    frame: &TraversalFrame,
+    voxels: &[T],
+    dims: [usize; 3],
+    cells: &[[usize; 3]],
+    uvw: &[Vec3],
+    out: &mut [Option<Vec3>],
+) {
+    let m = cells.len().min(8);
+    let scalar = |i: usize| normal_at(frame, voxels, dims, cells[i], uvw[i]);
+    if matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32) {
+        for (i, o) in out[..m].iter_mut().enumerate() {
+            *o = scalar(i);
+        }
+        return;
+    }
+    let (sy, sz) = (dims[0], dims[0] * dims[1]);
+    // Lane-major copies of `gradient_interior_f32`'s rows: xr[(z·2 + y)·4 + x + 1],
+    // yr[(z·2 + side)·2 + x], zr[(y·2 + side)·2 + x], the central-difference widths
+    // wd[axis·2 + plane] and the cell-local position; lanes outside keep zeros (unused).
+    let mut xr = [[0f32; 8]; 16];
+    let mut yr = [[0f32; 8]; 8];
+    let mut zr = [[0f32; 8]; 8];
+    let mut wd = [[1f32; 8]; 6];
+    let mut pos = [[0f32; 8]; 3];
+    let mut interior = 0u32;
+    for i in 0..m {
+        let c = cells[i];
+        if (0..3).any(|a| c[a] == 0 || c[a] + 3 > dims[a]) {
+            continue;
+        }
+        interior |= 1 << i;
+        let base = c[0] + sy * c[1] + sz * c[2];
+        let row = |o: usize, out: &mut [[f32; 8]], at: usize, len: usize| {
+            for (x, &v) in voxels[o..o + len].iter().enumerate() {
+                out[at + x][i] = v.to_f32();
+            }
+        };
+        for z in 0..2 {
+            for y in 0..2 {
+                row(base - 1 + y * sy + z * sz, &mut xr, (z * 2 + y) * 4, 4);
+            }
+            row(base - sy + z * sz, &mut yr, z * 4, 2);
+            row(base + 2 * sy + z * sz, &mut yr, z * 4 + 2, 2);
+        }
+        for y in 0..2 {
+            row(base + y * sy - sz, &mut zr, y * 4, 2);
+            row(base + y * sy + 2 * sz, &mut zr, y * 4 + 2, 2);
+        }
+        for a in 0..3 {
+            let (p, k) = (&frame.pos[a], c[a]);
+            wd[a * 2][i] = p[k + 1] - p[k - 1];
+            wd[a * 2 + 1][i] = p[k + 2] - p[k];
+        }
+        pos[0][i] = uvw[i].x;
+        pos[1][i] = uvw[i].y;
+        pos[2][i] = uvw[i].z;
+    }
+    let one = f32x8::ONE;
+    let inv = wd.map(|w| one / f32x8::from(w));
+    let [u, v, w] = pos.map(f32x8::from);
+    let corner = |x: usize, y: usize, z: usize| f32x8::from(xr[(z * 2 + y) * 4 + x + 1]);
+    let (mut gx, mut gy, mut gz) = (f32x8::ZERO, f32x8::ZERO, f32x8::ZERO);
+    for c in 0..8 {
+        let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+        let xrow = (bz * 2 + by) * 4;
+        let (xm, xp) = (f32x8::from(xr[xrow + bx]), f32x8::from(xr[xrow + bx + 2]));
+        let (ym, yp) = if by == 0 {
+            (f32x8::from(yr[bz * 4 + bx]), corner(bx, 1, bz))
+        } else {
+            (corner(bx, 0, bz), f32x8::from(yr[bz * 4 + 2 + bx]))
+        };
+        let (zm, zp) = if bz == 0 {
+            (f32x8::from(zr[by * 4 + bx]), corner(bx, by, 1))
+        } else {
+            (corner(bx, by, 0), f32x8::from(zr[by * 4 + 2 + bx]))
+        };
+        let weight = (if bx == 1 { u } else { one - u })
+            * (if by == 1 { v } else { one - v })
+            * (if bz == 1 { w } else { one - w });
+        gx += (xp - xm) * inv[bx] * weight;
+        gy += (yp - ym) * inv[2 + by] * weight;
+        gz += (zp - zm) * inv[4 + bz] * weight;
+    }
+    // `world_normal_f32`: the matrix product (glam's column order), then `normalize_or_zero`.
+    let mat = frame.world_gradient_from_local_f32();
+    let row_of = |a: usize| {
+        f32x8::splat(mat.x_axis[a]) * gx
+            + f32x8::splat(mat.y_axis[a]) * gy
+            + f32x8::splat(mat.z_axis[a]) * gz
+    };
+    let (nx, ny, nz) = (row_of(0), row_of(1), row_of(2));
+    let rcp = one / (nx * nx + ny * ny + nz * nz).sqrt();
+    let grad = [gx, gy, gz].map(f32x8::to_array);
+    let n = [nx * rcp, ny * rcp, nz * rcp].map(f32x8::to_array);
+    let rcp = rcp.to_array();
+    for (i, o) in out[..m].iter_mut().enumerate() {
+        let g = Vec3::new(grad[0][i], grad[1][i], grad[2][i]);
+        let nrm = Vec3::new(n[0][i], n[1][i], n[2][i]);
+        *o = if interior >> i & 1 == 1
+            && g.is_finite()
+            && g != Vec3::ZERO
+            && rcp[i].is_finite()
+            && rcp[i] > 0.0
+            && nrm != Vec3::ZERO
+            && nrm.is_finite()
+        {
+            Some(nrm)
+        } else {
+            scalar(i)
+        };
+    }
 }
 
 /// [`normal_at`] for every case, in `f64` (see the module docs).
@@ -418,6 +540,74 @@ mod tests {
         // A constant cell has no normal (the caller faces the ray).
         let flat = vec![T::from_f64(3.0); voxels.len()];
         assert!(faceted_normal_at(&frame, &flat, dims, [1, 1, 1], Vec3::splat(0.5)).is_none());
+    }
+
+    /// The lanes of [`normals_x8`] against [`normal_at`] one by one, bit for bit: random
+    /// cells (border cells and a constant block among them, which take the fallbacks) at
+    /// random positions, an uneven sheared and rotated grid, lanes of 1 to 8, each voxel type
+    /// kind (`f64` takes `normal_at` in every lane).
+    #[test]
+    fn normals_in_lanes_equal_normal_at_bit_for_bit() {
+        lanes_equal_normal_at::<u8>(255.0, 11);
+        lanes_equal_normal_at::<i16>(3000.0, 12);
+        lanes_equal_normal_at::<f32>(1.0, 13);
+        lanes_equal_normal_at::<f64>(1.0, 14);
+    }
+
+    fn lanes_equal_normal_at<T: Voxel>(scale: f64, seed: u64) {
+        let mut rng = Rng::new(seed);
+        let dims = [9, 8, 7];
+        let world = glam::DAffine3::from_rotation_z(0.7)
+            * glam::DAffine3::from_mat3(glam::DMat3::from_cols(
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.3, 1.0, 0.0),
+                DVec3::new(0.0, 0.2, 1.5),
+            ));
+        let axes = [0, 1, 2].map(|a| explicit_axis(&mut rng, dims[a]));
+        let grid = Grid::new(dims, axes, Some(world)).unwrap();
+        let frame = TraversalFrame::new(&grid);
+        let voxels: Vec<T> = (0..grid.voxel_count())
+            .map(|v| {
+                // A constant block around (2..5, 2..5, 2..5): vanishing gradients there.
+                let (i, j, k) = (v % dims[0], v / dims[0] % dims[1], v / (dims[0] * dims[1]));
+                let flat = [i, j, k].iter().all(|&c| (2..5).contains(&c));
+                T::from_f64(scale * if flat { 0.5 } else { rng.unit_f64() })
+            })
+            .collect();
+        let (mut lanes_fast, mut lanes_fallback) = (0, 0);
+        for round in 0..400 {
+            let m = 1 + round % 8;
+            let cells: Vec<[usize; 3]> = (0..m)
+                .map(|_| [0, 1, 2].map(|a| rng.below(dims[a] as u32 - 1) as usize))
+                .collect();
+            let uvw: Vec<Vec3> = (0..m)
+                .map(|_| Vec3::new(rng.unit_f32(), rng.unit_f32(), rng.unit_f32()))
+                .collect();
+            let mut got = [Some(Vec3::NAN); 8];
+            normals_x8(&frame, &voxels, dims, &cells, &uvw, &mut got[..m]);
+            for i in 0..m {
+                let want = normal_at(&frame, &voxels, dims, cells[i], uvw[i]);
+                assert_eq!(
+                    got[i].map(|n| n.to_array().map(f32::to_bits)),
+                    want.map(|n| n.to_array().map(f32::to_bits)),
+                    "lane {i} of {m}: cell {:?} at {}",
+                    cells[i],
+                    uvw[i]
+                );
+                let interior = gradient_interior_f32(&frame, &voxels, dims, cells[i], uvw[i]);
+                if interior.is_some() {
+                    lanes_fast += 1;
+                } else {
+                    lanes_fallback += 1;
+                }
+            }
+        }
+        // Both kinds of lane were compared (for f64 every lane is a fallback).
+        assert!(lanes_fallback > 50, "{lanes_fallback} fallback lanes");
+        assert!(
+            T::TYPE == VoxelType::F64 || lanes_fast > 300,
+            "{lanes_fast} lanes"
+        );
     }
 
     #[test]

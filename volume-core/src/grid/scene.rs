@@ -17,7 +17,8 @@ use glam::Vec3;
 
 use super::dda::DdaScene;
 use super::hit::{
-    CellBlock, CellTrace, LaneLayers, LocalPacket, first_hit_with, first_hits_packet_with, make_hit,
+    CellBlock, CellTrace, LaneLayers, LocalPacket, first_hit_with, first_hits_packet_with,
+    make_hits_in_block,
 };
 use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
@@ -27,7 +28,9 @@ use crate::kdtree::{
     KdTree, KdTreeConfig, LIVE_COVER_NODES, PACKET_WIDTH, packet_compatible, with_packet_stack,
 };
 use crate::math::{Aabb, Ray};
-use crate::render::{Hit, HitField, IsoScene, Normals, Peel, PeeledHits, SceneVisitor, Stats};
+use crate::render::{
+    Hit, HitField, IsoScene, MAX_PEELED, Normals, Peel, PeeledHits, SceneVisitor, Stats,
+};
 use crate::volume::{Grid, RectilinearVolume, ValueMap, VoxelBuffer, VoxelData};
 use crate::voxel::Voxel;
 
@@ -442,22 +445,30 @@ impl<T: Voxel> GridScene<T> {
                 }
             }
         }
-        let block = self.block();
+        // Every lane's layers, in lane order, get their hits together.
+        let mut lanes = [0usize; PACKET_WIDTH * MAX_PEELED];
+        let mut hits = [CellHit::NONE; PACKET_WIDTH * MAX_PEELED];
+        let mut m = 0;
         for (i, o) in out[..n].iter_mut().enumerate() {
             *o = PeeledHits::NONE;
-            for &h in layers.of(i) {
-                o.push(make_hit(
-                    block.frame,
-                    block.voxels,
-                    block.dims,
-                    &local[i],
-                    &rays[i],
-                    h,
-                    isos.normals(),
-                ));
-            }
             o.more = layers.more(i);
+            for &h in layers.of(i) {
+                (lanes[m], hits[m]) = (i, h);
+                m += 1;
+            }
         }
+        let (lanes, hits) = (&lanes[..m], &hits[..m]);
+        make_hits_in_block(
+            &self.block(),
+            local,
+            rays,
+            lanes,
+            hits,
+            isos.normals(),
+            |j, hit| {
+                out[lanes[j]].push(hit);
+            },
+        );
     }
 }
 

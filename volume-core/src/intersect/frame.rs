@@ -356,6 +356,12 @@ impl TraversalFrame {
         (n != DVec3::ZERO && n.is_finite()).then(|| n.as_vec3())
     }
 
+    /// The `f32` matrix of [`Self::world_normal_f32`], for code that repeats its arithmetic
+    /// in lanes ([`crate::grid::normals_x8`]).
+    pub(crate) fn world_gradient_from_local_f32(&self) -> &Mat3 {
+        &self.world_gradient_from_local_f32
+    }
+
     /// [`TraversalFrame::world_normal`] of an `f32` gradient, in `f32` (a shading normal
     /// needs no more); the `f64` path only when `f32` overflows, underflows or has a
     /// non-finite matrix (extreme spacings or values).

@@ -477,6 +477,15 @@ pub struct CellHit {
     pub cell: [usize; 3],
 }
 
+impl CellHit {
+    /// A placeholder for fixed-size lane arrays (no hit: `t` is infinite).
+    pub const NONE: Self = Self {
+        t: f32::INFINITY,
+        surface: 0,
+        cell: [0; 3],
+    };
+}
+
 /// Intersects the ray with the active isosurfaces inside cell `cell`, within `[t_lo, t_hi]`.
 ///
 /// The segment is the cell's own slab overlap (not the traversal's interval), so every
