@@ -2,7 +2,8 @@
 //! first-hit loop of the kd-tree scene ([`super::GridScene`]), its DDA twin
 //! ([`super::DdaScene`]) and the out-of-core scene ([`crate::ooc::OocScene`]);
 //! [`first_hits_packet_with`], the one packet loop of the kd-tree and out-of-core scenes; and
-//! [`make_hit`], the hit with its shading normal ([`super::normals`]).
+//! [`make_hit`], the hit with its shading normal ([`super::normals`]), which a packet's hits in
+//! one voxel block get together (`make_hits_in_block`: smooth normals 8 at a time).
 
 use glam::Vec3;
 
@@ -317,7 +318,7 @@ pub fn make_hit<T: Voxel>(
 }
 
 /// Where hit `h` lies in its cell, in `[0, 1]³` (what the normals read).
-#[inline]
+#[inline(always)]
 fn hit_uvw(frame: &TraversalFrame, local: &LocalRay, h: &CellHit) -> Vec3 {
     let (lo, hi) = frame.cell_box(h.cell);
     let p = local.origin + local.dir * h.t;
@@ -362,17 +363,15 @@ pub(crate) fn make_hits_in_block<T: Voxel>(
             cells[j] = h.cell;
             uvw[j] = hit_uvw(block.frame, &local[i], h);
         }
-        let mut normals = [None; 8];
-        normals_x8(
+        let normals = normals_x8(
             block.frame,
             block.voxels,
             block.dims,
             &cells[..m],
             &uvw[..m],
-            &mut normals[..m],
         );
         for (j, (&i, &h)) in lanes.iter().zip(hits).enumerate() {
-            put(c * 8 + j, hit_facing(h, normals[j], &rays[i]));
+            put(c * 8 + j, hit_facing(h, normals.get(j), &rays[i]));
         }
     }
 }

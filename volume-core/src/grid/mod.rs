@@ -23,6 +23,6 @@ pub mod scene;
 
 pub use dda::DdaScene;
 pub use hit::{CellBlock, CellTrace, make_hit};
-pub use normals::{normal_at, normals_x8};
+pub use normals::{LaneNormals, normal_at, normals_x8};
 pub use sample::{GridField, GridQuantity, VolumeSampler, gradient_magnitude_range};
 pub use scene::{AnyGridScene, GridScene, StepSwitch};
