@@ -56,6 +56,19 @@ pub fn gradient_local_at<T: Voxel>(
     central_differences(frame, voxels, dims, cell, uvw).0
 }
 
+/// Whether `f32` holds voxel type `T`'s values well enough for the interior `f32` gradient
+/// (not 32-bit integers or `f64`).
+const fn f32_holds<T: Voxel>() -> bool {
+    !matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32)
+}
+
+/// Whether every central difference at `cell`'s corners has both neighbours: the cell is
+/// at least one sample away from every border.
+#[inline]
+fn away_from_borders(dims: [usize; 3], cell: [usize; 3]) -> bool {
+    (0..3).all(|a| cell[a] > 0 && cell[a] + 3 <= dims[a])
+}
+
 /// The common case of the gradient in `f32` with straight-line loads: a cell at least one
 /// sample away from every border, a voxel type `f32` holds well (not 32-bit integers or
 /// `f64`), and a finite, nonzero result. Every corner then takes the central difference,
@@ -69,9 +82,7 @@ fn gradient_interior_f32<T: Voxel>(
     cell: [usize; 3],
     uvw: Vec3,
 ) -> Option<Vec3> {
-    if matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32)
-        || (0..3).any(|a| cell[a] == 0 || cell[a] + 3 > dims[a])
-    {
+    if !f32_holds::<T>() || !away_from_borders(dims, cell) {
         return None;
     }
     let (sy, sz) = (dims[0], dims[0] * dims[1]);
@@ -166,7 +177,7 @@ pub fn normals_x8<T: Voxel>(
             out.some |= 1 << i;
         }
     };
-    if matches!(T::TYPE, VoxelType::F64 | VoxelType::I32 | VoxelType::U32) {
+    if !f32_holds::<T>() {
         for i in 0..m {
             scalar(&mut out, i);
         }
@@ -184,7 +195,7 @@ pub fn normals_x8<T: Voxel>(
     let mut interior = 0u32;
     for i in 0..m {
         let c = cells[i];
-        if (0..3).any(|a| c[a] == 0 || c[a] + 3 > dims[a]) {
+        if !away_from_borders(dims, c) {
             continue;
         }
         interior |= 1 << i;
