@@ -165,6 +165,18 @@ fn check_all(
         {
             return Err(format!("normal {:?} not unit", h.normal));
         }
+        // Where both found the same tet (a ray through a shared edge may take either), the
+        // packet's normal (faceted from the traversal, smooth after the rows' prefetch) is
+        // the single ray's, bit for bit.
+        if let (Some(a), Some(b)) = (one, hits[i])
+            && a.cell == b.cell
+            && a.normal.to_array().map(f32::to_bits) != b.normal.to_array().map(f32::to_bits)
+        {
+            return Err(format!(
+                "ray {i}: packet normal {:?} vs single {:?}",
+                b.normal, a.normal
+            ));
+        }
         if scene.occluded(&rays[i], t_min[i], t_max[i], iso, &mut NoStats) != one.is_some() {
             return Err(format!("occluded disagrees with first_hit for ray {i}"));
         }

@@ -46,7 +46,7 @@ use crate::intersect::{
     CellHit, CellIntersector, IsoSet, LocalRay, TraversalFrame, cell_corners, corner_range,
     intersect_cell,
 };
-use crate::math::union_of_cell_boxes;
+use crate::math::{prefetch, union_of_cell_boxes};
 use crate::render::Stats;
 use crate::voxel::Voxel;
 use step::{Step, ray_step, take_step};
@@ -657,21 +657,6 @@ impl<T: Voxel> KdTree<T> {
             prefetch(at_left.wrapping_add(lv.grand_delta));
         }
     }
-}
-
-/// A cache prefetch hint for the line holding `p` (any address; nothing is read).
-#[inline(always)]
-fn prefetch<U>(p: *const U) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint: it never faults, reads nothing into the program and
-    // writes nothing, whatever the address (SSE is part of the x86_64 baseline). The
-    // traversal tests (kd-tree == DDA, packet == single) run through it.
-    #[allow(unsafe_code)]
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }
 
 #[inline(always)]
