@@ -6,7 +6,7 @@ use glam::Vec3;
 use proptest::prelude::*;
 use volume_core::math::Ray;
 use volume_core::math::rng::Rng;
-use volume_core::render::{CountStats, IsoScene, NoStats, Normals};
+use volume_core::render::{CountStats, IsoScene, NoStats, Normals, Peel, PeeledHits};
 use volume_core::tet::{
     BvhBuilder, BvhOptions, PointField, RawHit, TetMesh, TetScene, lattice_tets,
 };
@@ -915,5 +915,112 @@ fn live_bounds_leave_frames_unchanged_and_trace_fewer_rays() {
         f.counts.rays < meet,
         "{} rays traced, {meet} meet the live box",
         f.counts.rays
+    );
+}
+
+/// A ray's layers by definition: its first hit, then the first hit from [`Peel::next_t`] of
+/// the last one on, until an opaque one or `cap` (single rays, one traversal per layer).
+fn reshot_layers(
+    scene: &TetScene,
+    ray: &Ray,
+    t_min: f32,
+    t_max: f32,
+    isos: &[f32],
+    peel: &Peel,
+    cap: usize,
+) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    let mut t = t_min;
+    while out.len() < cap {
+        let Some(h) = scene.first_hit(ray, t, t_max, isos, &mut NoStats) else {
+            break;
+        };
+        out.push((h.t.to_bits(), h.surface));
+        if peel.ends_ray(h.surface) {
+            break;
+        }
+        t = peel.next_t(h.t);
+    }
+    out
+}
+
+#[test]
+fn packet_layers_equal_the_first_hits_of_rays_reshot_past_each_layer() {
+    let mut rng = Rng::new(17);
+    let mesh = grid_mesh(9, 0.3, &mut rng, noisy_field);
+    let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+    // Nested noisy shells: a ray crosses each several times.
+    let isos = [1.2f32, 2.0, 2.9];
+    let prepared = scene.prepare(&isos);
+    let (mut layers_seen, mut truncated, mut with_more) = (0usize, 0usize, 0usize);
+    for (packet, opaque, max_hits, normals) in [
+        (256, 0b100u64, 4u32, Normals::Faceted),
+        (256, 0b000, 4, Normals::Smooth),
+        (64, 0b010, 2, Normals::Faceted),
+        (7, 0b000, 3, Normals::Smooth),
+        (4, 0b100, 4, Normals::Faceted),
+    ] {
+        scene.set_packet_size(packet);
+        scene.set_normals(normals);
+        let peel = Peel {
+            opaque,
+            max_hits,
+            eps: 1e-4,
+        };
+        let cap = max_hits as usize;
+        let rays = random_rays(&mut rng, 600, 8.0, true);
+        let n = rays.len();
+        let t_min: Vec<f32> = (0..n).map(|i| if i % 5 == 0 { 3.0 } else { 0.0 }).collect();
+        let t_max = vec![f32::INFINITY; n];
+        let mut out = vec![PeeledHits::NONE; n];
+        scene.peeled_hits_packet_prepared(
+            &rays,
+            &t_min,
+            &t_max,
+            &prepared,
+            &peel,
+            &mut out,
+            &mut NoStats,
+        );
+        for (i, got) in out.iter().enumerate() {
+            let want = reshot_layers(&scene, &rays[i], t_min[i], t_max[i], &isos, &peel, cap);
+            let g: Vec<(u32, u32)> = got
+                .hits()
+                .iter()
+                .map(|h| (h.t.to_bits(), h.surface))
+                .collect();
+            let k = g.len();
+            assert!(
+                k <= want.len() && g[..] == want[..k],
+                "packet {packet}, ray {i}: {g:?} vs {want:?}"
+            );
+            let ends = want.last().is_some_and(|&(_, s)| peel.ends_ray(s));
+            if got.more {
+                // Truncated (the caller asks again from past the last layer) or full.
+                assert!(k > 0 && !got.hits().last().is_some_and(|h| peel.ends_ray(h.surface)));
+                truncated += usize::from(k < cap);
+                with_more += 1;
+            } else {
+                assert_eq!(k, want.len(), "packet {packet}, ray {i}: ended early");
+                assert!(
+                    k < cap || ends,
+                    "packet {packet}, ray {i}: full without more"
+                );
+            }
+            for h in got.hits() {
+                assert!(
+                    (h.normal.length() - 1.0).abs() < 1e-4,
+                    "normal {:?}",
+                    h.normal
+                );
+            }
+            layers_seen += k;
+        }
+    }
+    assert!(layers_seen > 1000, "{layers_seen} layers");
+    assert!(with_more > 50, "{with_more} rays with more");
+    assert!(
+        truncated * 10 < with_more,
+        "{truncated} truncated of {with_more}"
     );
 }

@@ -26,9 +26,9 @@ use rayon::prelude::*;
 use super::bvh::{BvhInfo, BvhOptions, TetBvh};
 use super::mesh::{TetError, TetMesh};
 use super::mt;
-use super::traverse::{MAX_PACKET, RawHit, TetView};
+use super::traverse::{MAX_PACKET, RawHit, RayLayers, TetView};
 use crate::math::{Aabb, Ray, prefetch};
-use crate::render::{Hit, HitField, IsoScene, Normals, Stats};
+use crate::render::{Hit, HitField, IsoScene, Normals, Peel, PeeledHits, Stats};
 
 /// A tetrahedral mesh ready for isosurface ray tracing (module docs).
 #[derive(Debug, Clone)]
@@ -356,11 +356,11 @@ impl TetScene {
     /// Starts loading the smooth-normal rows of a packet's hits, so that their cache misses
     /// (48 bytes a tet, in tet order: a hit's row is rarely cached) overlap instead of
     /// coming one per hit.
-    fn prefetch_normal_rows(&self, hits: &[Option<RawHit>]) {
+    fn prefetch_normal_rows<'a>(&self, hits: impl Iterator<Item = &'a RawHit>) {
         if self.normals != Normals::Smooth {
             return;
         }
-        for h in hits.iter().flatten() {
+        for h in hits {
             if let Some(rows) = self.normal_rows.get(h.tet as usize) {
                 let first = std::ptr::from_ref(rows).cast::<u8>();
                 prefetch(first);
@@ -635,6 +635,58 @@ impl IsoScene for TetScene {
             .is_some()
     }
 
+    /// Large packets collect every ray's layers in one traversal (`RayLayers`: its
+    /// nearest hits up to the first opaque one) instead of a new packet from the root per
+    /// layer; packets of at most 4 rays return first hits, as the trait's default does.
+    fn peeled_hits_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &TetIsovalues,
+        peel: &Peel,
+        out: &mut [PeeledHits],
+        stats: &mut S,
+    ) {
+        // Faceted normals from the traversal, as for first hits; smooth ones per layer.
+        let faceted = isos.normals && self.normals == Normals::Faceted;
+        // Made at the first large packet of the call (a tile's rays), not per ray.
+        let mut layers: Option<RayLayers> = None;
+        let mut first = [None; 4];
+        for start in (0..rays.len()).step_by(self.packet) {
+            let end = (start + self.packet).min(rays.len());
+            let n = end - start;
+            let (rays, t_min, t_max) = (&rays[start..end], &t_min[start..end], &t_max[start..end]);
+            if n <= 4 {
+                self.first_hit_packet_prepared(rays, t_min, t_max, isos, &mut first[..n], stats);
+                for (o, &h) in out[start..end].iter_mut().zip(&first[..n]) {
+                    o.set_first(h, peel);
+                }
+                continue;
+            }
+            let layers = layers.get_or_insert_with(|| RayLayers::new(peel, faceted));
+            self.view()
+                .trace_packet_layers(rays, t_min, t_max, &isos.values, layers, stats);
+            if isos.normals {
+                self.prefetch_normal_rows((0..n).flat_map(|k| layers.of(k)));
+            }
+            for (k, o) in out[start..end].iter_mut().enumerate() {
+                *o = layers.peeled(k, |h, normal| {
+                    if layers.faceted() {
+                        Hit {
+                            t: h.t,
+                            surface: h.surface,
+                            normal,
+                            cell: h.tet,
+                        }
+                    } else {
+                        self.to_hit(&rays[k], h, isos)
+                    }
+                });
+            }
+        }
+    }
+
     fn first_hit_packet_prepared<S: Stats>(
         &self,
         rays: &[Ray],
@@ -688,7 +740,7 @@ impl IsoScene for TetScene {
                 stats,
             );
             if isos.normals {
-                self.prefetch_normal_rows(&raw[..n]);
+                self.prefetch_normal_rows(raw[..n].iter().flatten());
             }
             for k in 0..n {
                 out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isos));

@@ -36,6 +36,10 @@
 //! skip it. A packet whose root isorange holds no isovalue returns before any per-ray
 //! setup; one whose frustum misses the root box right after the block and sub-frustum setup.
 //!
+//! Transparent surfaces: the large packets can also keep each ray's nearest hits up to its
+//! first hit on an opaque surface (`RayLayers`, thesis 004 §8.6), its range end lowered to
+//! that hit, so one traversal finds all the layers that a new packet per layer would.
+//!
 //! Packets of at most 4 rays run the *standard* packet traversal instead (every ray tested
 //! at every node with the scalar slab test, descend if any hits; one extraction per tet for
 //! the packet): the 2×2 baseline of Table 8.4.
@@ -56,7 +60,7 @@ use super::bvh::{BvhNode, MAX_DEPTH, TetBvh};
 use super::mt::{self, IsoPoly, RaySpace};
 use super::simd::{LANES, RayBlock, poly8, slab8};
 use crate::math::{Ray, float::gamma_f32};
-use crate::render::Stats;
+use crate::render::{Hit, MAX_PEELED, Peel, PeeledHits, Stats};
 
 /// Largest packet traced at once (16×16).
 pub const MAX_PACKET: usize = 256;
@@ -71,6 +75,156 @@ pub struct RawHit {
     pub t: f32,
     pub surface: u32,
     pub tet: u32,
+}
+
+/// Where the large-packet traversal puts the hits it finds within a ray's range: the
+/// ray's nearest hit ([`Nearest`]) or its layers ([`RayLayers`]).
+pub(crate) trait LaneHits {
+    /// Takes ray `r`'s hit (with its faceted normal on demand): the ray's new range end when
+    /// the hit lowers it (hits past it cannot matter), else `None`.
+    fn take(&mut self, r: usize, hit: RawHit, normal: impl FnOnce() -> Vec3) -> Option<f32>;
+}
+
+/// Each ray's nearest hit, and with `N` its faceted normal.
+struct Nearest<'a, const N: bool> {
+    out: &'a mut [Option<RawHit>],
+    normals: &'a mut [Vec3],
+}
+
+impl<const N: bool> LaneHits for Nearest<'_, N> {
+    #[inline(always)]
+    fn take(&mut self, r: usize, hit: RawHit, normal: impl FnOnce() -> Vec3) -> Option<f32> {
+        if !self.out[r].is_none_or(|h| hit.t < h.t) {
+            return None;
+        }
+        self.out[r] = Some(hit);
+        if N {
+            self.normals[r] = normal();
+        }
+        Some(hit.t)
+    }
+}
+
+/// Room per ray in [`RayLayers`]: the most layers a call returns, and as many again for the
+/// same crossing found in two tets (a ray through a shared edge).
+const LAYER_SLOTS: usize = 2 * MAX_PEELED;
+
+/// Each ray's nearest hits, front to back, up to its first hit on an opaque surface
+/// ([`Peel`]), for transparent surfaces in one traversal: the layers that new rays from
+/// past each layer ([`Peel::next_t`]) would find, since a tet hit's `t` does not depend on
+/// where the ray starts ([`RayLayers::peeled`]). A ray's range end drops to its opaque hit,
+/// or to its last kept hit once [`LAYER_SLOTS`] are full. With `faceted`, each kept hit's
+/// faceted normal is kept too (no second extraction).
+pub(crate) struct RayLayers {
+    peel: Peel,
+    faceted: bool,
+    n: [u8; MAX_PACKET],
+    hits: Box<[[RawHit; LAYER_SLOTS]]>,
+    normals: Box<[[Vec3; LAYER_SLOTS]]>,
+    /// Each ray's range end: its `t_max`, then lowered.
+    end: [f32; MAX_PACKET],
+    t_max: [f32; MAX_PACKET],
+}
+
+impl RayLayers {
+    pub(crate) fn new(peel: &Peel, faceted: bool) -> Self {
+        const NONE: RawHit = RawHit {
+            t: f32::INFINITY,
+            surface: 0,
+            tet: 0,
+        };
+        Self {
+            peel: *peel,
+            faceted,
+            n: [0; MAX_PACKET],
+            hits: vec![[NONE; LAYER_SLOTS]; MAX_PACKET].into_boxed_slice(),
+            normals: vec![[Vec3::Z; LAYER_SLOTS]; MAX_PACKET].into_boxed_slice(),
+            end: [0.0; MAX_PACKET],
+            t_max: [0.0; MAX_PACKET],
+        }
+    }
+
+    /// Whether the kept hits come with faceted normals ([`RayLayers::peeled`]).
+    pub(crate) fn faceted(&self) -> bool {
+        self.faceted
+    }
+
+    fn reset(&mut self, t_max: &[f32]) {
+        let len = t_max.len();
+        self.n[..len].fill(0);
+        self.end[..len].copy_from_slice(t_max);
+        self.t_max[..len].copy_from_slice(t_max);
+    }
+
+    /// Ray `r`'s kept hits, front to back.
+    pub(crate) fn of(&self, r: usize) -> &[RawHit] {
+        &self.hits[r][..usize::from(self.n[r])]
+    }
+
+    /// Ray `r`'s layers, front to back: the nearest hit, then each next one at or past
+    /// [`Peel::next_t`] of the last, until an opaque one or [`Peel`]'s cap; `more` when
+    /// the ray may hit more past the last (the caller asks again from there), as
+    /// first-hit searches from each layer on would give. `hit` makes each layer's [`Hit`]
+    /// from the raw hit and its kept faceted normal (unspecified without `faceted`).
+    pub(crate) fn peeled(&self, r: usize, mut hit: impl FnMut(&RawHit, Vec3) -> Hit) -> PeeledHits {
+        let mut out = PeeledHits::NONE;
+        let mut last: Option<f32> = None;
+        for (h, &normal) in self.of(r).iter().zip(&self.normals[r]) {
+            if last.is_some_and(|t| h.t < self.peel.next_t(t)) {
+                continue;
+            }
+            out.push(hit(h, normal));
+            last = Some(h.t);
+            if self.peel.ends_ray(h.surface) {
+                return out;
+            }
+            if out.n as usize == self.peel.cap() {
+                out.more = true;
+                return out;
+            }
+        }
+        // Past a lowered range end, hits were not kept.
+        out.more = out.n > 0 && self.end[r] < self.t_max[r];
+        out
+    }
+}
+
+impl LaneHits for RayLayers {
+    #[inline]
+    fn take(&mut self, r: usize, hit: RawHit, normal: impl FnOnce() -> Vec3) -> Option<f32> {
+        let (list, n) = (&mut self.hits[r], usize::from(self.n[r]));
+        // After hits at the same `t` (the first found stays first, as for a nearest hit).
+        let mut i = n;
+        while i > 0 && list[i - 1].t > hit.t {
+            i -= 1;
+        }
+        if i == LAYER_SLOTS {
+            return None;
+        }
+        let kept = (n + 1).min(LAYER_SLOTS);
+        list.copy_within(i..kept - 1, i + 1);
+        list[i] = hit;
+        if self.faceted {
+            let normals = &mut self.normals[r];
+            normals.copy_within(i..kept - 1, i + 1);
+            normals[i] = normal();
+        }
+        let mut end = self.end[r];
+        let kept = if self.peel.ends_ray(hit.surface) {
+            end = end.min(hit.t);
+            i + 1
+        } else {
+            kept
+        };
+        self.n[r] = kept as u8;
+        if kept == LAYER_SLOTS {
+            end = end.min(list[LAYER_SLOTS - 1].t);
+        }
+        (end < self.end[r]).then(|| {
+            self.end[r] = end;
+            end
+        })
+    }
 }
 
 #[inline]
@@ -588,23 +742,64 @@ impl TetView<'_> {
                 }
             }
         } else {
-            PACKET_SCRATCH.with(|cell| match cell.try_borrow_mut() {
-                Ok(mut sc) => {
-                    self.trace_large::<S, N>(rays, t_min, t_max, iso, out, normals, stats, &mut sc);
-                }
-                // Re-entered from the same thread (not done by the renderer): fresh buffers.
-                Err(_) => self.trace_large::<S, N>(
-                    rays,
-                    t_min,
-                    t_max,
-                    iso,
-                    out,
-                    normals,
-                    stats,
-                    &mut PacketScratch::new(),
-                ),
-            });
+            let mut nearest = Nearest::<N> { out, normals };
+            self.trace_large_scratch(rays, t_min, t_max, iso, &mut nearest, stats);
         }
+    }
+
+    /// The large-packet traversal of more than 4 rays (at most [`MAX_PACKET`]) that collects
+    /// each ray's hits in `layers` (its nearest ones, up to the first opaque one, for
+    /// transparent surfaces: [`RayLayers`]) instead of its nearest hit only.
+    pub(crate) fn trace_packet_layers<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        layers: &mut RayLayers,
+        stats: &mut S,
+    ) {
+        let len = rays.len();
+        assert!(
+            (5..=MAX_PACKET).contains(&len) && t_min.len() >= len && t_max.len() >= len,
+            "a large packet"
+        );
+        layers.reset(&t_max[..len]);
+        if S::ENABLED {
+            for _ in 0..len {
+                stats.ray();
+            }
+        }
+        let root = self.bvh.root();
+        if self.tets.is_empty() || !iso_active(root.lo.w, root.hi.w, iso) {
+            return;
+        }
+        self.trace_large_scratch(rays, t_min, t_max, iso, layers, stats);
+    }
+
+    /// [`TetView::trace_large`] with this thread's scratch buffers.
+    fn trace_large_scratch<S: Stats, H: LaneHits>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        hits: &mut H,
+        stats: &mut S,
+    ) {
+        PACKET_SCRATCH.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut sc) => self.trace_large(rays, t_min, t_max, iso, hits, stats, &mut sc),
+            // Re-entered from the same thread (not done by the renderer): fresh buffers.
+            Err(_) => self.trace_large(
+                rays,
+                t_min,
+                t_max,
+                iso,
+                hits,
+                stats,
+                &mut PacketScratch::new(),
+            ),
+        });
     }
 
     /// The 2×2 baseline of Table 8.4 (standard packet traversal): every ray is tested at
@@ -697,17 +892,16 @@ impl TetView<'_> {
         });
     }
 
-    /// The large-packet traversal (module docs) on 8-ray SIMD blocks; with `N`, the faceted
-    /// normal of every recorded hit goes to `normals`.
+    /// The large-packet traversal (module docs) on 8-ray SIMD blocks; every hit within a
+    /// ray's range goes to `hits`, which may lower the range's end.
     #[allow(clippy::too_many_arguments)]
-    fn trace_large<S: Stats, const N: bool>(
+    fn trace_large<S: Stats, H: LaneHits>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
         iso: &[f32],
-        out: &mut [Option<RawHit>],
-        normals: &mut [Vec3],
+        hits: &mut H,
         stats: &mut S,
         sc: &mut PacketScratch,
     ) {
@@ -804,7 +998,7 @@ impl TetView<'_> {
                 }
                 if n.is_leaf() {
                     stats.leaf();
-                    let hit_groups = self.leaf_large::<S, N>(
+                    let hit_groups = self.leaf_large(
                         n,
                         rays,
                         t_min,
@@ -814,8 +1008,7 @@ impl TetView<'_> {
                         first,
                         &fr,
                         gs,
-                        out,
-                        normals,
+                        hits,
                         iso,
                         stats,
                     );
@@ -869,7 +1062,7 @@ impl TetView<'_> {
     /// Returns the groups (bit `g`) where some ray found a nearer hit.
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn leaf_large<S: Stats, const N: bool>(
+    fn leaf_large<S: Stats, H: LaneHits>(
         &self,
         n: &BvhNode,
         rays: &[Ray],
@@ -880,8 +1073,7 @@ impl TetView<'_> {
         first: usize,
         fr: &Frustum,
         gs: &GroupSet,
-        out: &mut [Option<RawHit>],
-        normals: &mut [Vec3],
+        hits: &mut H,
         iso: &[f32],
         stats: &mut S,
     ) -> u32 {
@@ -931,12 +1123,9 @@ impl TetView<'_> {
                                 let l = m.trailing_zeros() as usize;
                                 m &= m - 1;
                                 let r = b * LANES + l;
-                                if out[r].is_none_or(|h| t[l] < h.t) {
-                                    bb[l] = t[l];
-                                    out[r] = Some(hit(t[l]));
-                                    if N {
-                                        normals[r] = poly.oriented_normal(v, iso[s as usize]);
-                                    }
+                                let normal = || poly.oriented_normal(v, iso[s as usize]);
+                                if let Some(end) = hits.take(r, hit(t[l]), normal) {
+                                    bb[l] = end;
                                     hit_groups |= 1 << g;
                                 }
                             }
@@ -950,13 +1139,10 @@ impl TetView<'_> {
                             if let Some(t) = mt::intersect(&rs, poly)
                                 && t >= t_min[r]
                                 && t <= bb[l]
-                                && out[r].is_none_or(|h| t < h.t)
+                                && let Some(end) = hits
+                                    .take(r, hit(t), || poly.oriented_normal(v, iso[s as usize]))
                             {
-                                bb[l] = t;
-                                out[r] = Some(hit(t));
-                                if N {
-                                    normals[r] = poly.oriented_normal(v, iso[s as usize]);
-                                }
+                                bb[l] = end;
                                 hit_groups |= 1 << g;
                             }
                         }
