@@ -672,7 +672,7 @@ impl IsoScene for TetScene {
             }
             for (k, o) in out[start..end].iter_mut().enumerate() {
                 *o = layers.peeled(k, |h, normal| {
-                    if layers.faceted() {
+                    if faceted {
                         Hit {
                             t: h.t,
                             surface: h.surface,

@@ -144,11 +144,6 @@ impl RayLayers {
         }
     }
 
-    /// Whether the kept hits come with faceted normals ([`RayLayers::peeled`]).
-    pub(crate) fn faceted(&self) -> bool {
-        self.faceted
-    }
-
     fn reset(&mut self, t_max: &[f32]) {
         let len = t_max.len();
         self.n[..len].fill(0);
@@ -721,15 +716,7 @@ impl TetView<'_> {
         let len = rays.len();
         assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
         out[..len].fill(None);
-        if S::ENABLED {
-            for _ in 0..len {
-                stats.ray();
-            }
-        }
-        // Implicit culling at the root first: a packet that cannot see any isovalue costs
-        // nothing more.
-        let root = self.bvh.root();
-        if len == 0 || self.tets.is_empty() || !iso_active(root.lo.w, root.hi.w, iso) {
+        if !self.packet_may_hit(len, iso, stats) {
             return;
         }
         if len <= 4 {
@@ -765,16 +752,22 @@ impl TetView<'_> {
             "a large packet"
         );
         layers.reset(&t_max[..len]);
+        if self.packet_may_hit(len, iso, stats) {
+            self.trace_large_scratch(rays, t_min, t_max, iso, layers, stats);
+        }
+    }
+
+    /// Counts a packet's `len` rays and culls it at the root first: a packet that cannot
+    /// see any isovalue costs nothing more.
+    #[inline]
+    fn packet_may_hit<S: Stats>(&self, len: usize, iso: &[f32], stats: &mut S) -> bool {
         if S::ENABLED {
             for _ in 0..len {
                 stats.ray();
             }
         }
         let root = self.bvh.root();
-        if self.tets.is_empty() || !iso_active(root.lo.w, root.hi.w, iso) {
-            return;
-        }
-        self.trace_large_scratch(rays, t_min, t_max, iso, layers, stats);
+        len > 0 && !self.tets.is_empty() && iso_active(root.lo.w, root.hi.w, iso)
     }
 
     /// [`TetView::trace_large`] with this thread's scratch buffers.
@@ -1059,7 +1052,7 @@ impl TetView<'_> {
     /// Leaf of the large-packet traversal: per tet an isorange test per isovalue, the
     /// isopolygon extracted on the fly, culled against the packet frustum and then against
     /// all sub-frusta at once (§8.2.3), then tested against the active rays 8 at a time.
-    /// Returns the groups (bit `g`) where some ray found a nearer hit.
+    /// Returns the groups (bit `g`) where some ray's range end was lowered (`hits`).
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn leaf_large<S: Stats, H: LaneHits>(
