@@ -235,6 +235,50 @@ fn seeded_random_meshes_match_brute_force() {
     }
 }
 
+/// Packets of parallel rays from surface points (shadow rays towards a directional light:
+/// origins spread over the surface, one direction) find the hits of single rays and of the
+/// brute force, rays that start on the surface itself included.
+#[test]
+fn parallel_shadow_packets_match_single_rays() {
+    for seed in 0..8u64 {
+        let mut rng = Rng::new(100 + seed);
+        let n = 6;
+        let mesh = grid_mesh(n, 0.3, &mut rng, noisy_field);
+        let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+        let (lo, hi) = scene.value_range().unwrap();
+        let iso = [rng.range_f32(lo, hi), rng.range_f32(lo, hi)];
+        let eyes: Vec<Ray> = (0..6)
+            .flat_map(|_| random_rays(&mut rng, 1000, (n - 1) as f32, true))
+            .collect();
+        let light = Vec3::new(
+            rng.range_f32(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
+        )
+        .normalize();
+        let eps = 1e-4 * (n - 1) as f32;
+        let mut rays = Vec::new();
+        for r in &eyes {
+            if rays.len() == 600 {
+                break;
+            }
+            if let Some(h) = scene.first_hit(r, 0.0, f32::INFINITY, &iso, &mut NoStats) {
+                let p = r.origin + r.dir * h.t;
+                let side = if h.normal.dot(r.dir) > 0.0 { -1.0 } else { 1.0 };
+                // Some rays start just off the surface, some on it.
+                let off = if rays.len() % 3 == 0 { 0.0 } else { eps };
+                rays.push(Ray::new(p + h.normal * side * off, light));
+            }
+        }
+        assert!(rays.len() > 300, "{} shadow rays", rays.len());
+        let t_min = vec![eps; rays.len()];
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 4 == 0 { 2.0 } else { f32::INFINITY })
+            .collect();
+        check_all(&mut scene, &rays, &t_min, &t_max, &iso).unwrap();
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
     #[test]
