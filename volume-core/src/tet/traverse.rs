@@ -1104,6 +1104,8 @@ impl TetView<'_> {
                 surface: s,
                 tet: ti,
             };
+            // The faceted normal, computed only for hits the sink keeps.
+            let normal = || poly.oriented_normal(v, iso[s as usize]);
             while gm != 0 {
                 let g = gm.trailing_zeros() as usize;
                 gm &= gm - 1;
@@ -1133,7 +1135,6 @@ impl TetView<'_> {
                                 let l = m.trailing_zeros() as usize;
                                 m &= m - 1;
                                 let r = b * LANES + l;
-                                let normal = || poly.oriented_normal(v, iso[s as usize]);
                                 if let Some(end) = hits.take(r, hit(t[l]), normal) {
                                     bb[l] = end;
                                     hit_groups |= 1 << g;
@@ -1149,8 +1150,7 @@ impl TetView<'_> {
                             if let Some(t) = mt::intersect(&rs, poly)
                                 && t >= t_min[r]
                                 && t <= bb[l]
-                                && let Some(end) = hits
-                                    .take(r, hit(t), || poly.oriented_normal(v, iso[s as usize]))
+                                && let Some(end) = hits.take(r, hit(t), normal)
                             {
                                 bb[l] = end;
                                 hit_groups |= 1 << g;
