@@ -258,8 +258,14 @@ impl CellSegment {
         };
         let t1 = t1.max(t0);
         let w = hi - lo;
-        let p0 = ((o - lo) + d * t0) / w;
-        let dp = d * (t1 - t0) / w;
+        let (mut p0, mut dp) = ((o - lo) + d * t0, d * (t1 - t0));
+        // A uniform axis' cells are one unit wide: `x / 1` is `x`, without the division.
+        for a in 0..3 {
+            if w[a] != 1.0 {
+                p0[a] /= w[a];
+                dp[a] /= w[a];
+            }
+        }
         (p0.to_array(), dp.to_array(), t0, t1)
     }
 

@@ -83,9 +83,15 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
     let mut dp = [f64x8::ZERO; 3];
     for a in 0..3 {
         let lo = f64x8::splat(f64::from(seg.lo[a]));
-        let w = f64x8::splat(f64::from(seg.hi[a]) - f64::from(seg.lo[a]));
-        p0[a] = ((o64[a] - lo) + d64[a] * t0) / w;
-        dp[a] = d64[a] * (t1 - t0) / w;
+        let w = f64::from(seg.hi[a]) - f64::from(seg.lo[a]);
+        p0[a] = (o64[a] - lo) + d64[a] * t0;
+        dp[a] = d64[a] * (t1 - t0);
+        // A uniform axis' cells are one unit wide: `x / 1` is `x`, without the divisions
+        // (the slow path's dividers are its bottleneck).
+        if w != 1.0 {
+            p0[a] = p0[a] / f64x8::splat(w);
+            dp[a] = dp[a] / f64x8::splat(w);
+        }
     }
     let k = cubic_of(&g.map(f64x8::splat), p0, dp);
 
