@@ -89,8 +89,8 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         // A uniform axis' cells are one unit wide: `x / 1` is `x`, without the divisions
         // (the slow path's dividers are its bottleneck).
         if w != 1.0 {
-            p0[a] = p0[a] / f64x8::splat(w);
-            dp[a] = dp[a] / f64x8::splat(w);
+            p0[a] /= f64x8::splat(w);
+            dp[a] /= f64x8::splat(w);
         }
     }
     let k = cubic_of(&g.map(f64x8::splat), p0, dp);
