@@ -234,8 +234,15 @@ mod tests {
         iso: f32,
         seen: &mut [usize; 3],
     ) {
-        let lo = rng.vec3(-40.0, 40.0);
-        let hi = lo + rng.vec3(0.3, 2.0);
+        // Half the cells a uniform axis' (integer corners, unit width: the branch without
+        // divisions by the width), half of random size.
+        let (lo, hi) = if rng.below(2) == 0 {
+            let lo = rng.vec3(-40.0, 40.0).floor();
+            (lo, lo + Vec3::ONE)
+        } else {
+            let lo = rng.vec3(-40.0, 40.0);
+            (lo, lo + rng.vec3(0.3, 2.0))
+        };
         let corners: [T; 8] = std::array::from_fn(|_| corner(rng));
         let sign = [0, 1, 2].map(|_| if rng.below(2) == 0 { 1.0f32 } else { -1.0 });
         let far = rng.range_f32(1.0, 300.0);
