@@ -87,7 +87,7 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         p0[a] = (o64[a] - lo) + d64[a] * t0;
         dp[a] = d64[a] * (t1 - t0);
         // A uniform axis' cells are one unit wide: `x / 1` is `x`, without the divisions
-        // (the slow path's dividers are its bottleneck).
+        // (6 of the about 19 of a call).
         if w != 1.0 {
             p0[a] /= f64x8::splat(w);
             dp[a] /= f64x8::splat(w);
