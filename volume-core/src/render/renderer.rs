@@ -672,6 +672,15 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
     // get no state: step 3 paints the whole tile with the background first.
     let columns_in = (1u32 << n_x) - 1;
     if traced && meets.iter().any(|&m| m & columns_in != 0) {
+        // The per-sample arrays as local slices: their pointers stay in registers instead of
+        // being read again from `sc` after every store.
+        let (active, rays, t_min, t_max, states) = (
+            &mut sc.active[..SLOTS],
+            &mut sc.rays[..SLOTS],
+            &mut sc.t_min[..SLOTS],
+            &mut sc.t_max[..SLOTS],
+            &mut sc.states[..SLOTS],
+        );
         for &[dx, dy] in &ctx.order {
             if dx >= n_x || dy >= n_y || meets[dy as usize] >> dx & 1 == 0 {
                 continue;
@@ -699,12 +708,12 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             let iv_end = sc.intervals.len() as u32;
             let t_from = sc.intervals[iv as usize].lo;
             let k = n_states;
-            sc.active[k] = k as u32;
-            sc.rays[k] = ray;
-            sc.t_min[k] = t_from;
-            sc.t_max[k] = sc.intervals[iv as usize].hi;
+            active[k] = k as u32;
+            rays[k] = ray;
+            t_min[k] = t_from;
+            t_max[k] = sc.intervals[iv as usize].hi;
             n_states += 1;
-            sc.states[k] = RayState::start(iv, iv_end, t_from, pos as u8);
+            states[k] = RayState::start(iv, iv_end, t_from, pos as u8);
         }
     }
 
@@ -719,7 +728,8 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         if n == 0 {
             break;
         }
-        // No clearing of `sc.hits`: every path writes each of its `n` entries.
+        // No clearing of `sc.hits` or `sc.first`: the path taken writes each of its `n`
+        // entries, and the hits below are read from that one.
         if settings.packets && ctx.peels {
             scene.peeled_hits_packet_prepared(
                 &sc.rays[..n],
@@ -740,9 +750,6 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 &mut sc.first[..n],
                 &mut tally.stats,
             );
-            for (o, &h) in sc.hits[..n].iter_mut().zip(&sc.first[..n]) {
-                o.set_first(h, &ctx.peel);
-            }
         } else {
             for k in 0..n {
                 let hit = scene.first_hit_prepared(
@@ -763,15 +770,28 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         sc.shadow_of.clear();
         // Hits: their surface and shading geometry; shadow rays are queued, to be traced
         // together as one packet (parallel for a directional light, coherent for a point).
+        // First hits are read where the packets wrote them (`sc.first`), not copied into
+        // `sc.hits` first (a pass over every ray of the round).
+        let first_only = settings.packets && !ctx.peels;
+        let (active, states, first, peeled) = (
+            &sc.active[..n],
+            &mut sc.states[..SLOTS],
+            &sc.first[..n],
+            &sc.hits[..n],
+        );
         for k in 0..n {
-            let idx = sc.active[k] as usize;
-            let st = &mut sc.states[idx];
-            let found = &sc.hits[k];
-            if found.n == 0 {
+            let st = &mut states[active[k] as usize];
+            let (found, more) = if first_only {
+                let f = first[k].as_slice();
+                (f, f.first().is_some_and(|h| !ctx.peel.ends_ray(h.surface)))
+            } else {
+                (peeled[k].hits(), peeled[k].more)
+            };
+            if found.is_empty() {
                 live += usize::from(st.next_interval(&sc.intervals));
                 continue;
             }
-            for (j, &hit) in found.hits().iter().enumerate() {
+            for (j, &hit) in found.iter().enumerate() {
                 let Some(&surface) = ctx.surface_of.get(hit.surface as usize) else {
                     // A scene reporting a surface we did not ask for: stop, do not guess.
                     // The layers in front of it are still composited, then the ray ends.
@@ -809,8 +829,8 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                     normal,
                     to_light,
                     lit: 1.0,
-                    last: j + 1 == found.n as usize,
-                    more: found.more,
+                    last: j + 1 == found.len(),
+                    more,
                 });
                 if SHADOWS && Shader::lambert(normal, to_light) > 0.0 {
                     tally.rays.shadow += 1;
