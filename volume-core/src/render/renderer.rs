@@ -686,34 +686,34 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 continue;
             }
             let pos = dy * TILE + dx;
-            let ray = sc.tile_rays[pos as usize];
             let range = Interval::new(lo[dy as usize][dx as usize], hi[dy as usize][dx as usize]);
             let iv = sc.intervals.len() as u32;
-            if no_clips {
+            let first = if no_clips {
                 // The one kept interval is the bounds range (what `kept_intervals` returns).
                 sc.intervals.push(range);
+                range
             } else {
                 kept_intervals(
-                    &ray,
+                    &sc.tile_rays[pos as usize],
                     range,
                     &settings.clips,
                     &mut sc.clip_out,
                     &mut sc.clip_tmp,
                 );
-                if sc.clip_out.is_empty() {
+                let Some(&first) = sc.clip_out.first() else {
                     continue;
-                }
+                };
                 sc.intervals.extend_from_slice(&sc.clip_out);
-            }
+                first
+            };
             let iv_end = sc.intervals.len() as u32;
-            let t_from = sc.intervals[iv as usize].lo;
             let k = n_states;
             active[k] = k as u32;
-            rays[k] = ray;
-            t_min[k] = t_from;
-            t_max[k] = sc.intervals[iv as usize].hi;
+            rays[k] = sc.tile_rays[pos as usize];
+            t_min[k] = first.lo;
+            t_max[k] = first.hi;
             n_states += 1;
-            states[k] = RayState::start(iv, iv_end, t_from, pos as u8);
+            states[k] = RayState::start(iv, iv_end, first.lo, pos as u8);
         }
     }
 
