@@ -271,13 +271,20 @@ struct RayState {
     iv: u32,
     iv_end: u32,
     t_from: f32,
-    color: Vec3,
-    transmittance: f32,
-    depth: f32,
+    /// Layers composited so far; its [`Composite`] is set from the first on.
     layers: u32,
     /// Position in the tile, `dy · TILE + dx`.
     pos: u8,
     done: bool,
+}
+
+/// What a sample has composited, kept apart from its [`RayState`]: the rays that miss (most
+/// of a frame's) never touch it, and the states they do touch stay half the size.
+#[derive(Debug, Clone, Copy)]
+struct Composite {
+    color: Vec3,
+    transmittance: f32,
+    depth: f32,
 }
 
 impl RayState {
@@ -300,9 +307,6 @@ impl RayState {
             iv,
             iv_end,
             t_from,
-            color: Vec3::ZERO,
-            transmittance: 1.0,
-            depth: f32::INFINITY,
             layers: 0,
             pos,
             done: false,
@@ -318,6 +322,8 @@ impl RayState {
 #[derive(Default)]
 struct Scratch {
     states: Vec<RayState>,
+    /// Each state's composite, valid where its `layers` is not 0.
+    composites: Vec<Composite>,
     /// The tile's primary rays, row-major (`dy · TILE + dx`).
     tile_rays: Vec<Ray>,
     intervals: Vec<Interval>,
@@ -403,6 +409,12 @@ impl Scratch {
                 ..RayState::start(0, 0, 0.0, 0)
             };
             self.states.resize(SLOTS, state);
+            let none = Composite {
+                color: Vec3::ZERO,
+                transmittance: 1.0,
+                depth: f32::INFINITY,
+            };
+            self.composites.resize(SLOTS, none);
             self.active.resize(SLOTS, 0);
             self.rays.resize(SLOTS, Ray::new(Vec3::ZERO, Vec3::ONE));
             self.t_min.resize(SLOTS, 0.0);
@@ -893,7 +905,9 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         // Shade and composite front to back.
         for ps in &sc.shade {
             let k = ps.k as usize;
-            let st = &mut sc.states[sc.active[k] as usize];
+            let idx = sc.active[k] as usize;
+            let st = &mut sc.states[idx];
+            let comp = &mut sc.composites[idx];
             if st.done {
                 // Layers the scene found past where the ray ends (its opacity or the layer
                 // limit).
@@ -901,11 +915,15 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             }
             let surface = &settings.surfaces[ps.surface as usize];
             if st.layers == 0 {
-                st.depth = ps.t;
+                *comp = Composite {
+                    color: Vec3::ZERO,
+                    transmittance: 1.0,
+                    depth: ps.t,
+                };
             }
             if settings.depth_only {
-                st.color = Vec3::from(surface.color);
-                st.transmittance = 0.0;
+                comp.color = Vec3::from(surface.color);
+                comp.transmittance = 0.0;
                 st.layers = 1;
                 st.done = true;
                 continue;
@@ -923,10 +941,10 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                 ps.lit,
             );
             let alpha = surface.opacity.clamp(0.0, 1.0);
-            st.color += rgb * (st.transmittance * alpha);
-            st.transmittance *= 1.0 - alpha;
+            comp.color += rgb * (comp.transmittance * alpha);
+            comp.transmittance *= 1.0 - alpha;
             st.layers += 1;
-            if st.transmittance <= OPAQUE_TRANSMITTANCE || st.layers >= ctx.max_layers {
+            if comp.transmittance <= OPAQUE_TRANSMITTANCE || st.layers >= ctx.max_layers {
                 st.done = true;
                 continue;
             }
@@ -965,11 +983,11 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         }
         band.depth[row + x0..row + x1].fill(f32::INFINITY);
     }
-    for st in &sc.states[..n_states] {
+    for (st, comp) in sc.states[..n_states].iter().zip(&sc.composites) {
         if st.layers == 0 {
             continue;
         }
-        let c = st.color + bg * st.transmittance;
+        let c = comp.color + bg * comp.transmittance;
         let rgba = [to_u8(c.x), to_u8(c.y), to_u8(c.z), 255];
         let (dx, dy) = (
             usize::from(st.pos) % TILE as usize,
@@ -978,7 +996,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         if step == 1 {
             let p = dy * row_len + x_tile + dx;
             band.rgba8[4 * p..4 * p + 4].copy_from_slice(&rgba);
-            band.depth[p] = st.depth;
+            band.depth[p] = comp.depth;
             continue;
         }
         let x0 = (x_tile + dx) * step;
@@ -988,7 +1006,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             let row = y * row_len;
             for p in row + x0..row + x1 {
                 band.rgba8[4 * p..4 * p + 4].copy_from_slice(&rgba);
-                band.depth[p] = st.depth;
+                band.depth[p] = comp.depth;
             }
         }
     }
