@@ -287,6 +287,17 @@ struct Composite {
     depth: f32,
 }
 
+impl Composite {
+    /// Nothing composited in front of a first layer at `depth`.
+    fn starting_at(depth: f32) -> Self {
+        Self {
+            color: Vec3::ZERO,
+            transmittance: 1.0,
+            depth,
+        }
+    }
+}
+
 impl RayState {
     /// Moves on to the next kept interval (nothing more to find in this one); false when
     /// there is none, and the sample is done.
@@ -409,12 +420,8 @@ impl Scratch {
                 ..RayState::start(0, 0, 0.0, 0)
             };
             self.states.resize(SLOTS, state);
-            let none = Composite {
-                color: Vec3::ZERO,
-                transmittance: 1.0,
-                depth: f32::INFINITY,
-            };
-            self.composites.resize(SLOTS, none);
+            self.composites
+                .resize(SLOTS, Composite::starting_at(f32::INFINITY));
             self.active.resize(SLOTS, 0);
             self.rays.resize(SLOTS, Ray::new(Vec3::ZERO, Vec3::ONE));
             self.t_min.resize(SLOTS, 0.0);
@@ -915,11 +922,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
             }
             let surface = &settings.surfaces[ps.surface as usize];
             if st.layers == 0 {
-                *comp = Composite {
-                    color: Vec3::ZERO,
-                    transmittance: 1.0,
-                    depth: ps.t,
-                };
+                *comp = Composite::starting_at(ps.t);
             }
             if settings.depth_only {
                 comp.color = Vec3::from(surface.color);
