@@ -586,6 +586,8 @@ proptest! {
         let n = dims.iter().product::<usize>();
         let voxels: Vec<f32> = (0..n).map(|_| if rng.below(50) == 0 { f32::NAN } else { rng.range_f32(-1.0, 1.0) }).collect();
         let _hits = packets_equal_single(&grid, &voxels, &[0.2, -0.5], &mut rng);
+        // One isovalue: a packet's certain crossings are refined after its walk, together.
+        let _hits = packets_equal_single(&grid, &voxels, &[0.2], &mut rng);
     }
 }
 
@@ -598,6 +600,9 @@ fn packet_comparison_sees_hits() {
         .map(|_| (rng.below(256)) as u8)
         .collect();
     let (hits, layers) = packets_equal_single(&grid, &voxels, &[100.5, 200.0], &mut rng);
+    // One isovalue (the packets' deferred refinement).
+    let (one_hits, _) = packets_equal_single(&grid, &voxels, &[100.5], &mut rng);
+    assert!(one_hits > 100, "{one_hits} hits with one isovalue");
     assert!(hits > 200, "{hits}");
     assert!(layers > 200, "{layers}");
 }

@@ -421,6 +421,7 @@ impl<T: Voxel> GridScene<T> {
                     isos,
                     intersector,
                     stats,
+                    false,
                     |k, hit| layers.add(from + k, hit),
                 );
             });

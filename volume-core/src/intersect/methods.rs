@@ -328,11 +328,27 @@ impl CellIntersector for Exact {
         seg: &SegmentsX8<'_>,
         mask: u32,
     ) -> RootsX8 {
+        self.first_roots_x8_deferring(corners, iso, seg, mask, 0).0
+    }
+
+    /// As [`Exact::first_roots_x8`]; a lane of `may_defer` that the `f32` fast path cannot
+    /// clear is deferred when its segment's end values are certified of opposite signs (the
+    /// same error bound as the clearing): the `f64` cubic changes sign on the exact segment,
+    /// so the slow path finds a root there.
+    #[inline(always)]
+    fn first_roots_x8_deferring<T: Voxel>(
+        &self,
+        corners: &[T; 8],
+        iso: f32,
+        seg: &SegmentsX8<'_>,
+        mask: u32,
+        may_defer: u32,
+    ) -> (RootsX8, u32) {
         let mut r = RootsX8::default();
         let (g, gmax) = corner_diffs(corners, iso);
         if gmax == 0.0 {
             r.mask = mask;
-            return r;
+            return (r, 0);
         }
         let (p0, dp) = seg.local_f32();
         let k = cubic_x8(&g, p0, dp);
@@ -342,9 +358,14 @@ impl CellIntersector for Exact {
             * (f32x8::splat(32.0 * f32::EPSILON) + f32x8::splat(1.1) * seg_err);
         let slow = mask & !bernstein_clear_x8(&k, margin);
         if slow == 0 {
-            return r;
+            return (r, 0);
         }
-        super::slow_x8::exact_slow_x8(corners, iso, seg, slow)
+        let deferred = slow & may_defer & bernstein_crossing_x8(&k, margin);
+        let now = slow & !deferred;
+        if now != 0 {
+            r = super::slow_x8::exact_slow_x8(corners, iso, seg, now);
+        }
+        (r, deferred)
     }
 }
 
@@ -492,6 +513,19 @@ fn bernstein_clear_x8(k: &[f32x8; 4], margin: f32x8) -> u32 {
     let lo = d.min(b1).min(b2.min(b3));
     let hi = d.max(b1).max(b2.max(b3));
     (lo.simd_gt(margin) | hi.simd_lt(-margin)).to_bitmask()
+}
+
+/// The lanes whose cubic's end values (`s = 0` and `s = 1`) lie farther from 0 than
+/// [`bernstein_clear_x8`]'s bound, on opposite sides: the `f64` cubic on the exact segment
+/// changes sign, so it has a root there.
+#[inline(always)]
+fn bernstein_crossing_x8(k: &[f32x8; 4], margin: f32x8) -> u32 {
+    let [a, b, c, d] = *k;
+    let end = a + b + c + d;
+    let margin =
+        margin + f32x8::splat(16.0 * f32::EPSILON) * (a.abs() + b.abs() + c.abs() + d.abs());
+    let neg = -margin;
+    ((d.simd_gt(margin) & end.simd_lt(neg)) | (d.simd_lt(neg) & end.simd_gt(margin))).to_bitmask()
 }
 
 /// Schwarze's analytic cubic solver (Graphics Gems I; Cardano with the trigonometric form

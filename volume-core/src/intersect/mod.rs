@@ -32,7 +32,7 @@ pub mod accuracy;
 pub mod frame;
 pub mod methods;
 pub mod packet;
-mod slow_x8;
+pub(crate) mod slow_x8;
 
 use std::str::FromStr;
 
@@ -43,6 +43,7 @@ use crate::volume::ValueMap;
 use crate::voxel::{Voxel, VoxelType};
 
 pub use frame::{LocalRay, TraversalFrame};
+pub(crate) use packet::root_t;
 pub use packet::{HitsX8, RaysX8, RootsX8, SegmentsX8, intersect_prepared_cell_x8};
 
 /// The run-time choice of cell intersector.
@@ -301,6 +302,24 @@ pub trait CellIntersector: Copy + Send + Sync + 'static {
     ) -> RootsX8 {
         packet::first_roots_by_lane(self, corners, iso, seg, mask)
     }
+
+    /// [`CellIntersector::first_roots_x8`], except that lanes in `may_defer` whose segment
+    /// certainly crosses the surface may be left out of the roots and returned in the second
+    /// mask: their root is then found later, together with other cells' lanes (the slow
+    /// path's jobs; a first-hit packet needs only to know that its lane ends in this cell).
+    /// The default defers nothing.
+    #[inline(always)]
+    fn first_roots_x8_deferring<T: Voxel>(
+        &self,
+        corners: &[T; 8],
+        iso: f32,
+        seg: &SegmentsX8<'_>,
+        mask: u32,
+        may_defer: u32,
+    ) -> (RootsX8, u32) {
+        let _ = may_defer;
+        (self.first_roots_x8(corners, iso, seg, mask), 0)
+    }
 }
 
 /// The most isovalues one traversal handles without allocating (more are still correct, the
@@ -366,6 +385,12 @@ impl<T: Voxel> IsoSet<T> {
 
     pub fn is_empty(&self) -> bool {
         self.len == 0
+    }
+
+    /// The isovalue and surface of a set of exactly one.
+    #[inline]
+    pub fn single(&self) -> Option<(f32, u32)> {
+        (self.len == 1 && self.spill.is_empty()).then(|| (self.value[0], self.surface[0]))
     }
 
     /// The same isovalues for hits whose normal nobody reads

@@ -122,14 +122,23 @@ pub struct HitsX8 {
     pub t: [f32; LANES],
     pub surface: [u32; LANES],
     pub mask: u32,
+    /// Lanes whose hit in this cell is certain but left for later (see `may_defer`), and
+    /// their segments through the cell (set only when some lane is deferred).
+    pub deferred: u32,
+    pub t_near: [f32; LANES],
+    pub t_far: [f32; LANES],
 }
 
 /// [`super::intersect_prepared_cell`] for the lanes of `active` (no leaf is counted here).
+/// With a set of one isovalue, lanes of `may_defer` that certainly cross the surface in
+/// this cell may be returned as `deferred` instead of with a hit
+/// ([`CellIntersector::first_roots_x8_deferring`]).
 #[inline(always)]
 pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
     pc: &PreparedCell<T>,
     rays: &RaysX8,
     active: u32,
+    may_defer: u32,
     isos: &IsoSet<T>,
     intersector: C,
     stats: &mut S,
@@ -138,6 +147,9 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         t: [0.0; LANES],
         surface: [0; LANES],
         mask: 0,
+        deferred: 0,
+        t_near: [0.0; LANES],
+        t_far: [0.0; LANES],
     };
     let (lo, hi) = (pc.lo, pc.hi);
     // frame::slab, lane-wise (no zero direction components in a packet).
@@ -161,18 +173,24 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         t_far: t1,
     };
     let (tn, tf) = (t0.to_array(), t1.to_array());
+    // Deferring is for one isovalue: with more, a lane's hit is the nearest of theirs.
+    let may_defer = if isos.single().is_some() {
+        may_defer & mask
+    } else {
+        0
+    };
     isos.for_each_in(pc.min, pc.max, |iso, surface| {
         for _ in 0..mask.count_ones() {
             stats.intersection();
         }
-        let roots = intersector.first_roots_x8(&pc.corners, iso, &seg, mask);
+        let (roots, deferred) =
+            intersector.first_roots_x8_deferring(&pc.corners, iso, &seg, mask, may_defer);
+        hits.deferred |= deferred;
         let mut bits = roots.mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            // CellSegment::t_at, then the clamp of intersect_prepared_cell.
-            let (n, f) = (f64::from(tn[i]), f64::from(tf[i]));
-            let t = ((n + roots.s[i] * (f - n)) as f32).clamp(tn[i], tf[i]);
+            let t = root_t(tn[i], tf[i], roots.s[i]);
             if hits.mask & (1 << i) == 0 || t < hits.t[i] {
                 hits.t[i] = t;
                 hits.surface[i] = surface;
@@ -180,7 +198,18 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
             }
         }
     });
+    if hits.deferred != 0 {
+        (hits.t_near, hits.t_far) = (tn, tf);
+    }
     hits
+}
+
+/// A lane's hit `t` from its root `s` on its segment `[t_near, t_far]` through a cell:
+/// [`CellSegment::t_at`], then the clamp of [`super::intersect_prepared_cell`].
+#[inline(always)]
+pub(crate) fn root_t(t_near: f32, t_far: f32, s: f64) -> f32 {
+    let (n, f) = (f64::from(t_near), f64::from(t_far));
+    ((n + s * (f - n)) as f32).clamp(t_near, t_far)
 }
 
 /// The default [`CellIntersector::first_roots_x8`]: the scalar method per lane.
@@ -303,7 +332,7 @@ mod tests {
         let active = rng.next_u32() & 0xff | 1;
         let packet = RaysX8::from_rays(&rays, f32x8::new(t_lo), f32x8::new(t_hi));
         let mut st_x8 = CountStats::default();
-        let got = intersect_prepared_cell_x8(&pc, &packet, active, &isos, c, &mut st_x8);
+        let got = intersect_prepared_cell_x8(&pc, &packet, active, 0, &isos, c, &mut st_x8);
         let mut st_1 = CountStats::default();
         for i in 0..LANES {
             let want = if active & (1 << i) != 0 {

@@ -14,11 +14,18 @@
 //! (docs/benchmarks.md). Lanes whose cubic is not certified monotone on the segment (extrema
 //! to isolate first, [`super::methods::first_root_f64`]) take the scalar path: about one call
 //! in twenty on the MNI frame, and their branches differ by lane.
+//!
+//! The lanes need not share a cell ([`exact_slow_jobs`]): a first-hit packet with one
+//! isovalue leaves the roots of its certain crossings for after its walk and refines them 8 at
+//! a time, whatever cells they lie in ([`crate::kdtree`]'s `Deferred`), instead of the two or
+//! three lanes that meet the surface in one cell. Both entry points fill the same lanes
+//! (`LaneCells`) and run the same steps.
 
 use wide::{f32x8, f64x8};
 
 use super::methods::{EXACT_ITERATIONS, corner_diffs_f64, cubic_of, eval_of, exact_slow};
-use super::{RootsX8, SegmentsX8};
+use super::{CellSegment, RootsX8, SegmentsX8};
+use crate::math::lane_indices;
 use crate::voxel::Voxel;
 
 #[inline(always)]
@@ -47,22 +54,166 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         };
     };
     let rays = seg.rays;
+    let cells = LaneCells {
+        origin: rays.origin,
+        dir: rays.dir,
+        inv_dir: rays.inv_dir,
+        dir_pos: rays.dir_pos,
+        lo: [0, 1, 2].map(|a| f32x8::splat(seg.lo[a])),
+        hi: [0, 1, 2].map(|a| f32x8::splat(seg.hi[a])),
+        t_near: seg.t_near,
+        t_far: seg.t_far,
+        g: g.map(f64x8::splat),
+        flat: 0,
+    };
+    slow_lanes(&cells, lanes, |i| exact_slow(corners, iso, &seg.lane(i)))
+}
+
+/// Up to 8 lanes of work for [`exact_slow_jobs`], one isovalue for all: lane `i` is a ray's
+/// segment through its own cell, with that cell's corners, as [`exact_slow`] takes them.
+/// Stored as lanes (filled one lane at a time, read 8 at a time).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SlowJobs<T> {
+    n: usize,
+    iso: f32,
+    corners: [[T; 8]; 8],
+    /// Per axis `origin`, `dir`, `inv_dir`, `lo`, `hi` (rows `0..15`), then `t_near`, `t_far`.
+    v: [[f32; 8]; 17],
+}
+
+impl<T: Voxel> SlowJobs<T> {
+    pub(crate) fn new(iso: f32) -> Self {
+        Self {
+            n: 0,
+            iso,
+            corners: [[T::default(); 8]; 8],
+            v: [[0.0; 8]; 17],
+        }
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.n
+    }
+
+    /// Adds a lane (at most 8).
+    #[inline(always)]
+    pub(crate) fn push(&mut self, corners: [T; 8], seg: &CellSegment) {
+        let i = self.n;
+        self.corners[i] = corners;
+        for a in 0..3 {
+            self.v[a][i] = seg.origin[a];
+            self.v[3 + a][i] = seg.dir[a];
+            self.v[6 + a][i] = seg.inv_dir[a];
+            self.v[9 + a][i] = seg.lo[a];
+            self.v[12 + a][i] = seg.hi[a];
+        }
+        self.v[15][i] = seg.t_near;
+        self.v[16][i] = seg.t_far;
+        self.n += 1;
+    }
+
+    /// Lane `i` as the scalar path's segment.
+    fn segment(&self, i: usize) -> CellSegment {
+        let v3 =
+            |row: usize| glam::Vec3::new(self.v[row][i], self.v[row + 1][i], self.v[row + 2][i]);
+        CellSegment {
+            origin: v3(0),
+            dir: v3(3),
+            inv_dir: v3(6),
+            lo: v3(9),
+            hi: v3(12),
+            t_near: self.v[15][i],
+            t_far: self.v[16][i],
+        }
+    }
+}
+
+/// [`exact_slow`] for the lanes of `jobs` side by side, each in its own cell (their rays
+/// share direction signs, as a packet's do): bit-identical to the scalar path per lane. A
+/// packet's hits are gathered from the cells they lie in and refined together, instead of
+/// one cell's few lanes at a time.
+pub(crate) fn exact_slow_jobs<T: Voxel>(jobs: &SlowJobs<T>) -> RootsX8 {
+    debug_assert!(jobs.n > 0 && jobs.n <= 8);
+    let n = jobs.n.min(8);
+    let lanes = (1u32 << n) - 1;
+    // Padding lanes repeat lane 0 (valid numbers, unit cells if its are; their results are
+    // not returned).
+    let mut v = jobs.v;
+    for row in &mut v {
+        let first = row[0];
+        row[n..].fill(first);
+    }
+    let mut g = [[0.0f64; 8]; 8];
+    let mut flat = 0u32;
+    for (i, corners) in jobs.corners.iter().enumerate().take(n) {
+        match corner_diffs_f64(corners, jobs.iso) {
+            Some(d) => {
+                for (gc, dc) in g.iter_mut().zip(d) {
+                    gc[i] = dc;
+                }
+            }
+            None => flat |= 1 << i,
+        }
+    }
+    let axes = |first: usize| [0, 1, 2].map(|a| f32x8::new(v[first + a]));
+    let cells = LaneCells {
+        origin: axes(0),
+        dir: axes(3),
+        inv_dir: axes(6),
+        dir_pos: [0, 1, 2].map(|a| v[3 + a][0] > 0.0),
+        lo: axes(9),
+        hi: axes(12),
+        t_near: f32x8::new(v[15]),
+        t_far: f32x8::new(v[16]),
+        g: g.map(f64x8::new),
+        flat,
+    };
+    slow_lanes(&cells, lanes, |i| {
+        exact_slow(&jobs.corners[i], jobs.iso, &jobs.segment(i))
+    })
+}
+
+/// Segments through cells, one lane each (a packet's segments through one cell, or jobs
+/// gathered from several): what the slow path reads of them.
+struct LaneCells {
+    origin: [f32x8; 3],
+    dir: [f32x8; 3],
+    inv_dir: [f32x8; 3],
+    dir_pos: [bool; 3],
+    lo: [f32x8; 3],
+    hi: [f32x8; 3],
+    t_near: f32x8,
+    t_far: f32x8,
+    /// Each lane's cell corner differences ([`corner_diffs_f64`]), unless its bit is in `flat`.
+    g: [f64x8; 8],
+    /// Lanes whose cell equals the isovalue: the segment starts on the surface.
+    flat: u32,
+}
+
+/// The slow path of the lanes in `lanes` side by side; `scalar(i)` is [`exact_slow`] for
+/// lane `i`, run for the lanes whose branches differ (see the module docs).
+#[inline(always)]
+fn slow_lanes(c: &LaneCells, lanes: u32, scalar: impl Fn(usize) -> Option<f64>) -> RootsX8 {
+    let flat = lanes & c.flat;
+    let lanes = lanes & !flat;
     // CellSegment::local_f64, lane-wise. A packet has no zero direction component
     // (`crate::kdtree::packet_compatible`); lanes that do take the scalar path.
-    let mut scalar = 0u32;
+    let mut scalar_lanes = 0u32;
     let (mut in32, mut out32) = (f32x8::splat(f32::NEG_INFINITY), f32x8::splat(f32::INFINITY));
     let (mut in64, mut out64) = (f64x8::splat(f64::NEG_INFINITY), f64x8::splat(f64::INFINITY));
     let mut o64 = [f64x8::ZERO; 3];
     let mut d64 = [f64x8::ZERO; 3];
+    let (mut lo64, mut w64) = ([f64x8::ZERO; 3], [f64x8::ONE; 3]);
+    let mut unit = true;
     for a in 0..3 {
-        scalar |= rays.dir[a].simd_eq(f32x8::ZERO).to_bitmask();
-        let (lo32, hi32) = (f32x8::splat(seg.lo[a]), f32x8::splat(seg.hi[a]));
-        let ta = (lo32 - rays.origin[a]) * rays.inv_dir[a];
-        let tb = (hi32 - rays.origin[a]) * rays.inv_dir[a];
-        let (o, d) = (wide64(rays.origin[a]), wide64(rays.dir[a]));
-        let ua = (f64x8::splat(f64::from(seg.lo[a])) - o) / d;
-        let ub = (f64x8::splat(f64::from(seg.hi[a])) - o) / d;
-        let (n, f, n64, f64_) = if rays.dir_pos[a] {
+        scalar_lanes |= c.dir[a].simd_eq(f32x8::ZERO).to_bitmask();
+        let ta = (c.lo[a] - c.origin[a]) * c.inv_dir[a];
+        let tb = (c.hi[a] - c.origin[a]) * c.inv_dir[a];
+        let (o, d) = (wide64(c.origin[a]), wide64(c.dir[a]));
+        let (lo, hi) = (wide64(c.lo[a]), wide64(c.hi[a]));
+        let ua = (lo - o) / d;
+        let ub = (hi - o) / d;
+        let (n, f, n64, f64_) = if c.dir_pos[a] {
             (ta, tb, ua, ub)
         } else {
             (tb, ta, ub, ua)
@@ -73,8 +224,11 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         out64 = out64.min(f64_);
         o64[a] = o;
         d64[a] = d;
+        lo64[a] = lo;
+        w64[a] = hi - lo;
+        unit &= w64[a].simd_eq(f64x8::ONE).all();
     }
-    let (tn, tf) = (wide64(seg.t_near), wide64(seg.t_far));
+    let (tn, tf) = (wide64(c.t_near), wide64(c.t_far));
     // (Equal in f64 exactly when equal in f32: the widening is exact.)
     let t0 = tn.simd_eq(wide64(in32)).select(in64, tn);
     let t1 = tf.simd_eq(wide64(out32)).select(out64, tf);
@@ -82,18 +236,16 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
     let mut p0 = [f64x8::ZERO; 3];
     let mut dp = [f64x8::ZERO; 3];
     for a in 0..3 {
-        let lo = f64x8::splat(f64::from(seg.lo[a]));
-        let w = f64::from(seg.hi[a]) - f64::from(seg.lo[a]);
-        p0[a] = (o64[a] - lo) + d64[a] * t0;
+        p0[a] = (o64[a] - lo64[a]) + d64[a] * t0;
         dp[a] = d64[a] * (t1 - t0);
-        // A uniform axis' cells are one unit wide: `x / 1` is `x`, without the divisions
-        // (6 of the about 19 of a call).
-        if w != 1.0 {
-            p0[a] /= f64x8::splat(w);
-            dp[a] /= f64x8::splat(w);
+        // Unit-wide cells (a uniform axis' in traversal units): `x / 1` is `x`, so the
+        // divisions (6 of the about 19 of a call) are left out when every lane's is.
+        if !unit {
+            p0[a] /= w64[a];
+            dp[a] /= w64[a];
         }
     }
-    let k = cubic_of(&g.map(f64x8::splat), p0, dp);
+    let k = cubic_of(&c.g, p0, dp);
 
     // exact_slow's tolerance on s.
     let span = t1 - t0;
@@ -114,9 +266,9 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         | (b0.simd_lt(neg_slack) & b1.simd_lt(neg_slack) & b2.simd_lt(neg_slack));
     let (zero, one) = (f64x8::ZERO, f64x8::ONE);
     let start_zero = f0.simd_eq(zero);
-    let at_start = lanes & !scalar & bits(start_zero);
-    let vector = lanes & !scalar & !at_start & bits(monotone);
-    scalar |= lanes & !at_start & !vector;
+    let at_start = lanes & !scalar_lanes & bits(start_zero);
+    let vector = lanes & !scalar_lanes & !at_start & bits(monotone);
+    scalar_lanes |= lanes & !at_start & !vector;
     let f1 = eval_of(&k, one);
     let end_zero = f1.simd_eq(zero);
     let at_end = vector & bits(end_zero);
@@ -132,12 +284,17 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         s: tf.simd_gt(tn).select((t - tn) / (tf - tn), zero).to_array(),
         mask: at_start | at_end | crossing,
     };
-    for i in lane_indices(scalar & lanes) {
-        if let Some(s) = exact_slow(corners, iso, &seg.lane(i)) {
+    for i in lane_indices(scalar_lanes & lanes) {
+        if let Some(s) = scalar(i) {
             r.s[i] = s;
             r.mask |= 1 << i;
         }
     }
+    // Cells equal to the isovalue: every segment starts on the surface.
+    for i in lane_indices(flat) {
+        r.s[i] = 0.0;
+    }
+    r.mask |= flat;
     r
 }
 
@@ -203,18 +360,6 @@ fn mask_of(bits: u32) -> f64x8 {
             0.0
         }
     }))
-}
-
-/// The indices of the set bits of `mask`, lowest first.
-#[inline(always)]
-fn lane_indices(mut mask: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let i = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            i
-        })
-    })
 }
 
 #[cfg(test)]
@@ -286,6 +431,81 @@ mod tests {
             seen[usize::from(want.is_some())] += 1;
             seen[2] += usize::from(want.is_some_and(|s| s > 0.0 && s < 1.0));
         }
+    }
+
+    /// Jobs from 8 different cells side by side: each lane's root equals the scalar slow
+    /// path's for its own job, bit for bit (or both find none).
+    #[test]
+    fn jobs_from_different_cells_equal_the_scalar_slow_path() {
+        let mut rng = Rng::new(77);
+        let (mut some, mut none) = (0, 0);
+        for round in 0..3000 {
+            let sign = [0, 1, 2].map(|_| if rng.below(2) == 0 { 1.0f32 } else { -1.0 });
+            let n = 1 + rng.below(8) as usize;
+            // One isovalue per batch, as a packet's jobs have; shallow cells around 0.3
+            // (cubics with extrema near zero: the scalar lanes), now and then a cell equal
+            // to the isovalue.
+            let iso = if rng.below(3) == 0 { 0.3 } else { 0.0 };
+            let jobs: Vec<([f32; 8], CellSegment)> = (0..n)
+                .map(|_| {
+                    // Unit cells (all lanes: no divisions by widths) or random sizes.
+                    let lo = rng.vec3(-40.0, 40.0).floor();
+                    let hi = if round % 2 == 0 {
+                        lo + Vec3::ONE
+                    } else {
+                        lo + rng.vec3(0.3, 2.0)
+                    };
+                    let flat = rng.below(20) == 0;
+                    let corners: [f32; 8] = std::array::from_fn(|_| {
+                        if flat {
+                            iso
+                        } else if iso == 0.0 {
+                            rng.range_f32(-1.0, 1.0)
+                        } else {
+                            0.3 + 0.02 * rng.range_f32(-1.0, 1.0)
+                        }
+                    });
+                    let far = rng.range_f32(1.0, 300.0);
+                    let eye = (lo + hi) * 0.5 - Vec3::from(sign) * far;
+                    let target = lo + (hi - lo) * rng.vec3(0.0, 1.0);
+                    let d = (target - eye).abs().max(Vec3::splat(1e-4)) * Vec3::from(sign);
+                    let ray = LocalRay::new(eye, d * rng.range_f32(0.2, 5.0));
+                    let (t_near, t_far) =
+                        slab(&ray, lo, hi, 0.0, f32::INFINITY).unwrap_or((1.0, 1.0));
+                    let seg = CellSegment {
+                        origin: ray.origin,
+                        dir: ray.dir,
+                        inv_dir: ray.inv_dir,
+                        lo,
+                        hi,
+                        t_near,
+                        t_far,
+                    };
+                    (corners, seg)
+                })
+                .collect();
+            let mut batch = SlowJobs::new(iso);
+            for (corners, seg) in &jobs {
+                batch.push(*corners, seg);
+            }
+            let got = exact_slow_jobs(&batch);
+            assert_eq!(got.mask >> n, 0, "roots only on the jobs' lanes");
+            for (i, j) in jobs.iter().enumerate() {
+                let want = exact_slow(&j.0, iso, &j.1);
+                let got_i = (got.mask >> i & 1 == 1).then(|| got.s[i]);
+                assert_eq!(
+                    got_i.map(f64::to_bits),
+                    want.map(f64::to_bits),
+                    "job {i} of {n}: {j:?}"
+                );
+                if want.is_some() {
+                    some += 1;
+                } else {
+                    none += 1;
+                }
+            }
+        }
+        assert!(some > 1000 && none > 1000, "{some} roots, {none} without");
     }
 
     #[test]

@@ -12,15 +12,23 @@
 //! (tested). Packets need every ray to share the sign of each direction component and have
 //! no zero component; [`crate::grid::GridScene`] splits other groups into packets of 8
 //! or traces them one by one.
+//!
+//! A first-hit walk with one isovalue need not know where in a cell its lane's crossing
+//! lies, only that it is there: a lane whose crossing the `f32` filter certifies (end values
+//! of opposite signs beyond the error bound) is cut at the cell's far end and its root found
+//! after the walk, with the other such lanes, 8 at a time by the `f64` slow path (`Deferred`;
+//! the same roots, so the same hits as single rays, tested).
 
 use wide::f32x8;
 
 use super::step::{Step, Visit};
 use super::{Entry, INLINE_STACK, KdTree};
+use crate::intersect::slow_x8::{SlowJobs, exact_slow_jobs};
 use crate::intersect::{
-    CellHit, CellIntersector, IsoSet, LocalRay, PreparedCell, RaysX8, TraversalFrame,
-    intersect_prepared_cell_x8,
+    CellHit, CellIntersector, CellSegment, HitsX8, IsoSet, LocalRay, PreparedCell, RaysX8,
+    TraversalFrame, cell_corners, intersect_prepared_cell_x8, root_t,
 };
+use crate::math::lane_indices;
 use crate::render::Stats;
 use crate::voxel::Voxel;
 
@@ -257,6 +265,7 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     intersector: C,
     stats: &mut S,
     best: &mut [f32; PACKET_WIDTH],
+    mut defer: Option<&mut Deferred>,
     mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
 ) -> Lanes {
     for _ in 0..active.count_ones() {
@@ -267,8 +276,23 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     };
     for (h, half_rays) in p.leaf.iter_mut().enumerate() {
         let mut test = (active >> (8 * h)) & 0xff;
+        // A lane is deferred once at most (its cut then ends the walk for it).
+        let may_defer = defer.as_ref().map_or(0, |d| !(d.lanes >> (8 * h)) & 0xff);
         while test != 0 {
-            let hits = intersect_prepared_cell_x8(&pc, half_rays, test, isos, intersector, stats);
+            let hits = intersect_prepared_cell_x8(
+                &pc,
+                half_rays,
+                test,
+                may_defer,
+                isos,
+                intersector,
+                stats,
+            );
+            if hits.deferred != 0
+                && let Some(d) = defer.as_deref_mut()
+            {
+                d.record(h, cell, &hits, best);
+            }
             let mut again = 0u32;
             let mut b = hits.mask;
             while b != 0 {
@@ -296,6 +320,109 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
         }
     }
     lanes(best)
+}
+
+/// The lanes of a first-hit packet whose hit cell is known (the `f32` fast path certified a
+/// crossing there, [`crate::intersect::CellIntersector::first_roots_x8_deferring`]) but
+/// whose root the walk left for later: the slow path then runs on 8 of them at a time,
+/// whatever their cells, instead of on the few lanes of one cell each time.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Deferred {
+    /// Bit `k`: lane `k` is deferred.
+    pub lanes: u32,
+    pub cell: [[usize; 3]; PACKET_WIDTH],
+    /// The lane's segment through the cell.
+    pub segment: [(f32, f32); PACKET_WIDTH],
+    /// The lane's cut when it was deferred: its hit counts if nearer.
+    pub cut: [f32; PACKET_WIDTH],
+}
+
+impl Deferred {
+    /// Records the deferred lanes of half `h`'s cell test in `cell`, and cuts them at their
+    /// segment's end. Out of line: the walk's loop stays as small as it was.
+    #[inline(never)]
+    fn record(
+        &mut self,
+        h: usize,
+        cell: [usize; 3],
+        hits: &HitsX8,
+        best: &mut [f32; PACKET_WIDTH],
+    ) {
+        for i in lane_indices(hits.deferred) {
+            let k = 8 * h + i;
+            self.lanes |= 1 << k;
+            self.cell[k] = cell;
+            self.segment[k] = (hits.t_near[i], hits.t_far[i]);
+            self.cut[k] = best[k];
+            // The hit lies in `[t_near, t_far]`; a hit at `t_far` or beyond, in a later
+            // cell, could not be nearer (a hit must be nearer than the cut).
+            best[k] = best[k].min(hits.t_far[i].next_down());
+        }
+    }
+
+    /// The deferred lanes' hits, handed to `on_hit` as the walk would have: the roots of
+    /// [`exact_slow_jobs`] (bit-identical to the cell test's), each lane's `t` as
+    /// [`intersect_prepared_cell_x8`] makes it.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn resolve<T: Voxel>(
+        &self,
+        frame: &TraversalFrame,
+        voxels: &[T],
+        dims: [usize; 3],
+        p: &PacketRays,
+        (iso, surface): (f32, u32),
+        mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
+    ) {
+        let mut rest = self.lanes;
+        while rest != 0 {
+            let mut ks = [0usize; 8];
+            let mut jobs = SlowJobs::new(iso);
+            while rest != 0 && jobs.len() < 8 {
+                let k = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                ks[jobs.len()] = k;
+                let (h, i) = (k / 8, k % 8);
+                let r = &p.leaf[h];
+                let v = |x: &[f32x8; 3]| {
+                    glam::Vec3::new(x[0].as_array()[i], x[1].as_array()[i], x[2].as_array()[i])
+                };
+                let cell = self.cell[k];
+                let (lo, hi) = frame.cell_box(cell);
+                let (t_near, t_far) = self.segment[k];
+                let seg = CellSegment {
+                    origin: v(&r.origin),
+                    dir: v(&r.dir),
+                    inv_dir: v(&r.inv_dir),
+                    lo,
+                    hi,
+                    t_near,
+                    t_far,
+                };
+                jobs.push(cell_corners(voxels, dims, cell), &seg);
+            }
+            let n = jobs.len();
+            let roots = exact_slow_jobs(&jobs);
+            for (j, &k) in ks[..n].iter().enumerate() {
+                // The certified crossing: the slow path finds a root.
+                debug_assert!(roots.mask >> j & 1 == 1, "deferred lane {k} without a root");
+                if roots.mask >> j & 1 == 0 {
+                    continue;
+                }
+                let (tn, tf) = self.segment[k];
+                let t = root_t(tn, tf, roots.s[j]);
+                if t < self.cut[k] {
+                    let _ = on_hit(
+                        k,
+                        CellHit {
+                            t,
+                            surface,
+                            cell: self.cell[k],
+                        },
+                    );
+                }
+            }
+        }
+    }
 }
 
 impl<T: Voxel> KdTree<T> {
@@ -357,6 +484,7 @@ impl<T: Voxel> KdTree<T> {
             isos,
             intersector,
             stats,
+            true,
             |k, hit| {
                 out[k] = Some(hit);
                 LaneNext::Stop(hit.t)
@@ -368,6 +496,9 @@ impl<T: Voxel> KdTree<T> {
     /// its lane's cut to `on_hit`, which says whether the lane stops there or goes on past
     /// it ([`packet_leaf`]): a first-hit search, or one that collects a ray's transparent
     /// layers as it goes ([`crate::render::IsoScene::peeled_hits_packet_prepared`]).
+    /// `first_hits`: every `on_hit` stops its lane ([`LaneNext::Stop`] at the hit), so a
+    /// lane whose hit cell is certain may have its root found after the walk ([`Deferred`];
+    /// one isovalue only).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(crate) fn walk_packet_in<C: CellIntersector, S: Stats>(
@@ -381,6 +512,7 @@ impl<T: Voxel> KdTree<T> {
         isos: &IsoSet<T>,
         intersector: C,
         stats: &mut S,
+        first_hits: bool,
         mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
     ) {
         let stack = &mut stack.entries;
@@ -407,6 +539,8 @@ impl<T: Voxel> KdTree<T> {
         }
         let mut p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
         let (mut tn, mut tf) = (p.t_near, p.t_far);
+        let single = isos.single().filter(|_| first_hits);
+        let mut deferred = Deferred::default();
         let mut best = [f32::INFINITY; PACKET_WIDTH];
         let mut best_v = splat(f32::INFINITY);
         let mut sp = 0usize;
@@ -431,6 +565,7 @@ impl<T: Voxel> KdTree<T> {
                         intersector,
                         stats,
                         &mut best,
+                        single.is_some().then_some(&mut deferred),
                         &mut on_hit,
                     );
                     break;
@@ -466,6 +601,9 @@ impl<T: Voxel> KdTree<T> {
                     continue 'outer;
                 }
             }
+        }
+        if let Some(single) = single.filter(|_| deferred.lanes != 0) {
+            deferred.resolve(frame, voxels, self.dims, &p, single, on_hit);
         }
     }
 }

@@ -6,7 +6,7 @@
 //! - [`Interval`]: closed `f32` intervals for ray-segment and value ranges.
 //! - [`float`]: floating-point error bounds (`gamma(n)`) and ulp stepping.
 //! - [`rng`]: the seeded deterministic generator of every test, benchmark and generated case.
-//! - `prefetch`: the one cache hint of the traversals.
+//! - `prefetch`: the one cache hint of the traversals; `lane_indices`: a lane mask's set bits.
 
 pub mod float;
 mod interval;
@@ -31,6 +31,18 @@ pub(crate) fn prefetch<U>(p: *const U) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = p;
+}
+
+/// The indices of the set bits of a lane mask, lowest first.
+#[inline(always)]
+pub(crate) fn lane_indices(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
 }
 
 /// A ray `origin + t·dir`, `t` in world units when `dir` is unit length.

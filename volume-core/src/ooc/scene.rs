@@ -1267,6 +1267,9 @@ impl<T: Voxel> OocScene<T> {
                         intersector,
                         stats,
                         &mut best,
+                        // Treelet cells come from several blocks, some paged out by the end
+                        // of the walk: roots are found as the cells are met.
+                        None,
                         |k, hit| {
                             out[k] = Some((hit, block));
                             LaneNext::Stop(hit.t)
