@@ -165,6 +165,20 @@ pub struct CellSegment {
 }
 
 impl CellSegment {
+    /// `ray`'s segment `[t_near, t_far]` through the cell `[lo, hi]`.
+    #[inline(always)]
+    pub fn of(ray: &LocalRay, lo: Vec3, hi: Vec3, t_near: f32, t_far: f32) -> Self {
+        Self {
+            origin: ray.origin,
+            dir: ray.dir,
+            inv_dir: ray.inv_dir,
+            lo,
+            hi,
+            t_near,
+            t_far,
+        }
+    }
+
     /// Cell-local entry point and displacement over the segment (`s ∈ [0, 1]`).
     ///
     /// Entry and exit points are each formed as `((origin − lo) + dir·t) / width`, and the
@@ -616,15 +630,7 @@ pub fn intersect_prepared_cell<T: Voxel, C: CellIntersector, S: crate::render::S
     if !(hi.cmpgt(lo).all()) {
         return None; // zero-width cell (explicit coordinates closer than f32 resolution)
     }
-    let seg = CellSegment {
-        origin: ray.origin,
-        dir: ray.dir,
-        inv_dir: ray.inv_dir,
-        lo,
-        hi,
-        t_near,
-        t_far,
-    };
+    let seg = CellSegment::of(ray, lo, hi, t_near, t_far);
     let mut best: Option<CellHit> = None;
     isos.for_each_in(pc.min, pc.max, |iso, surface| {
         stats.intersection();

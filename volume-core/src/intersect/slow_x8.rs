@@ -472,16 +472,7 @@ mod tests {
                     let ray = LocalRay::new(eye, d * rng.range_f32(0.2, 5.0));
                     let (t_near, t_far) =
                         slab(&ray, lo, hi, 0.0, f32::INFINITY).unwrap_or((1.0, 1.0));
-                    let seg = CellSegment {
-                        origin: ray.origin,
-                        dir: ray.dir,
-                        inv_dir: ray.inv_dir,
-                        lo,
-                        hi,
-                        t_near,
-                        t_far,
-                    };
-                    (corners, seg)
+                    (corners, CellSegment::of(&ray, lo, hi, t_near, t_far))
                 })
                 .collect();
             let mut batch = SlowJobs::new(iso);

@@ -362,7 +362,9 @@ impl Deferred {
 
     /// The deferred lanes' hits, handed to `on_hit` as the walk would have: the roots of
     /// [`exact_slow_jobs`] (bit-identical to the cell test's), each lane's `t` as
-    /// [`intersect_prepared_cell_x8`] makes it.
+    /// [`intersect_prepared_cell_x8`] makes it. `retrace(k, t)` is lane `k`'s first hit
+    /// from `t` on, traced alone: for a lane whose certified crossing the slow path did not
+    /// find (not seen; a rounding case beyond the bound would otherwise drop the hit).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn resolve<T: Voxel>(
         &self,
@@ -371,6 +373,7 @@ impl Deferred {
         dims: [usize; 3],
         p: &PacketRays,
         (iso, surface): (f32, u32),
+        mut retrace: impl FnMut(usize, f32) -> Option<CellHit>,
         mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
     ) {
         let mut rest = self.lanes;
@@ -403,22 +406,20 @@ impl Deferred {
             let n = jobs.len();
             let roots = exact_slow_jobs(&jobs);
             for (j, &k) in ks[..n].iter().enumerate() {
-                // The certified crossing: the slow path finds a root.
-                debug_assert!(roots.mask >> j & 1 == 1, "deferred lane {k} without a root");
-                if roots.mask >> j & 1 == 0 {
-                    continue;
-                }
                 let (tn, tf) = self.segment[k];
-                let t = root_t(tn, tf, roots.s[j]);
-                if t < self.cut[k] {
-                    let _ = on_hit(
-                        k,
-                        CellHit {
-                            t,
-                            surface,
-                            cell: self.cell[k],
-                        },
-                    );
+                let hit = if roots.mask >> j & 1 == 1 {
+                    Some(CellHit {
+                        t: root_t(tn, tf, roots.s[j]),
+                        surface,
+                        cell: self.cell[k],
+                    })
+                } else {
+                    // The certified crossing: the slow path finds a root.
+                    debug_assert!(false, "deferred lane {k} without a root");
+                    retrace(k, tf)
+                };
+                if let Some(hit) = hit.filter(|h| h.t < self.cut[k]) {
+                    let _ = on_hit(k, hit);
                 }
             }
         }
@@ -603,7 +604,10 @@ impl<T: Voxel> KdTree<T> {
             }
         }
         if let Some(single) = single.filter(|_| deferred.lanes != 0) {
-            deferred.resolve(frame, voxels, self.dims, &p, single, on_hit);
+            let retrace = |k: usize, t: f32| {
+                self.first_hit(frame, voxels, &rays[k], t, t1[k], isos, intersector, stats)
+            };
+            deferred.resolve(frame, voxels, self.dims, &p, single, retrace, on_hit);
         }
     }
 }
