@@ -136,13 +136,8 @@ pub(crate) fn exact_slow_jobs<T: Voxel>(jobs: &SlowJobs<T>) -> RootsX8 {
     debug_assert!(jobs.n > 0 && jobs.n <= 8);
     let n = jobs.n.min(8);
     let lanes = (1u32 << n) - 1;
-    // Padding lanes repeat lane 0 (valid numbers, unit cells if its are; their results are
-    // not returned).
-    let mut v = jobs.v;
-    for row in &mut v {
-        let first = row[0];
-        row[n..].fill(first);
-    }
+    // Lanes past `n` hold zeros: whatever they compute is masked out.
+    let v = &jobs.v;
     let mut g = [[0.0f64; 8]; 8];
     let mut flat = 0u32;
     for (i, corners) in jobs.corners.iter().enumerate().take(n) {
@@ -226,7 +221,7 @@ fn slow_lanes(c: &LaneCells, lanes: u32, scalar: impl Fn(usize) -> Option<f64>) 
         d64[a] = d;
         lo64[a] = lo;
         w64[a] = hi - lo;
-        unit &= w64[a].simd_eq(f64x8::ONE).all();
+        unit &= w64[a].simd_eq(f64x8::ONE).to_bitmask() & lanes == lanes;
     }
     let (tn, tf) = (wide64(c.t_near), wide64(c.t_far));
     // (Equal in f64 exactly when equal in f32: the widening is exact.)
@@ -239,7 +234,7 @@ fn slow_lanes(c: &LaneCells, lanes: u32, scalar: impl Fn(usize) -> Option<f64>) 
         p0[a] = (o64[a] - lo64[a]) + d64[a] * t0;
         dp[a] = d64[a] * (t1 - t0);
         // Unit-wide cells (a uniform axis' in traversal units): `x / 1` is `x`, so the
-        // divisions (6 of the about 19 of a call) are left out when every lane's is.
+        // divisions (6 of the about 19 of a call) are left out when every asked lane's is.
         if !unit {
             p0[a] /= w64[a];
             dp[a] /= w64[a];

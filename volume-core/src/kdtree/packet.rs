@@ -119,12 +119,15 @@ type PacketEntry = Entry<Lanes>;
 #[derive(Clone)]
 pub struct PacketStack {
     entries: [PacketEntry; INLINE_STACK],
+    /// The walk's deferred lanes (only their mask is reset per packet, not the slots).
+    deferred: Deferred,
 }
 
 impl Default for PacketStack {
     fn default() -> Self {
         Self {
             entries: [PacketEntry::default(); INLINE_STACK],
+            deferred: Deferred::default(),
         }
     }
 }
@@ -516,7 +519,10 @@ impl<T: Voxel> KdTree<T> {
         first_hits: bool,
         mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
     ) {
-        let stack = &mut stack.entries;
+        let PacketStack {
+            entries: stack,
+            deferred,
+        } = stack;
         let n = rays.len().min(PACKET_WIDTH);
         if self.levels.is_empty() || isos.is_empty() || n == 0 {
             return;
@@ -541,7 +547,7 @@ impl<T: Voxel> KdTree<T> {
         let mut p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
         let (mut tn, mut tf) = (p.t_near, p.t_far);
         let single = isos.single().filter(|_| first_hits);
-        let mut deferred = Deferred::default();
+        deferred.lanes = 0;
         let mut best = [f32::INFINITY; PACKET_WIDTH];
         let mut best_v = splat(f32::INFINITY);
         let mut sp = 0usize;
@@ -566,7 +572,7 @@ impl<T: Voxel> KdTree<T> {
                         intersector,
                         stats,
                         &mut best,
-                        single.is_some().then_some(&mut deferred),
+                        single.is_some().then_some(&mut *deferred),
                         &mut on_hit,
                     );
                     break;
