@@ -70,7 +70,7 @@ impl Default for KdTreeConfig {
 /// only costs instructions there: measured on the MNI MRI's 4.3 MB tree, a frame 2 % faster
 /// without it; on a 56 MB tree 1 % slower (docs/benchmarks.md). 8 MiB: below the L3 of
 /// current desktop and server cores, above their L2.
-pub const PREFETCH_MIN_TREE_BYTES: usize = 8 << 20;
+pub(crate) const PREFETCH_MIN_TREE_BYTES: usize = 8 << 20;
 
 #[derive(Debug, Clone, Copy)]
 struct Level {
