@@ -792,29 +792,21 @@ mod tests {
                 continue;
             }
             packets += 1;
-            let (mut a, mut b) = ([None; 16], [None; 16]);
-            off.first_hit_packet(
-                &frame,
-                &voxels,
-                &local,
-                &t0,
-                &t1,
-                &isos,
-                Exact,
-                &mut NoStats,
-                &mut a,
-            );
-            on.first_hit_packet(
-                &frame,
-                &voxels,
-                &local,
-                &t0,
-                &t1,
-                &isos,
-                Exact,
-                &mut NoStats,
-                &mut b,
-            );
+            let [a, b] = [&off, &on].map(|tree| {
+                let mut out = [None; 16];
+                tree.first_hit_packet(
+                    &frame,
+                    &voxels,
+                    &local,
+                    &t0,
+                    &t1,
+                    &isos,
+                    Exact,
+                    &mut NoStats,
+                    &mut out,
+                );
+                out
+            });
             assert_eq!(a, b);
             hits += a.iter().flatten().count();
         }
