@@ -12,7 +12,7 @@
 use glam::Vec3;
 use wide::f32x8;
 
-use super::{CellIntersector, CellSegment, IsoSet, PreparedCell};
+use super::{CellIntersector, CellSegment, IsoSet, LocalRay, PreparedCell};
 use crate::render::Stats;
 use crate::voxel::Voxel;
 
@@ -36,8 +36,8 @@ pub struct RaysX8 {
 impl RaysX8 {
     /// Eight rays as lanes (tests), with direction signs from the first ray (the rays must
     /// share them, as a packet's do) and the intervals `t_lo..t_hi`.
-    pub(crate) fn from_rays(rays: &[super::LocalRay; LANES], t_lo: f32x8, t_hi: f32x8) -> Self {
-        let lanes = |f: &dyn Fn(&super::LocalRay) -> Vec3| -> [f32x8; 3] {
+    pub(crate) fn from_rays(rays: &[LocalRay; LANES], t_lo: f32x8, t_hi: f32x8) -> Self {
+        let lanes = |f: &dyn Fn(&LocalRay) -> Vec3| -> [f32x8; 3] {
             [0, 1, 2].map(|a| f32x8::new(std::array::from_fn(|i| f(&rays[i])[a])))
         };
         Self {
@@ -61,22 +61,26 @@ pub struct SegmentsX8<'a> {
     pub t_far: f32x8,
 }
 
+impl RaysX8 {
+    /// Lane `i` as the scalar [`LocalRay`] (its stored reciprocals, not recomputed).
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> LocalRay {
+        let v =
+            |x: &[f32x8; 3]| Vec3::new(x[0].as_array()[i], x[1].as_array()[i], x[2].as_array()[i]);
+        LocalRay {
+            origin: v(&self.origin),
+            dir: v(&self.dir),
+            inv_dir: v(&self.inv_dir),
+        }
+    }
+}
+
 impl SegmentsX8<'_> {
     /// Lane `i` as the scalar [`CellSegment`].
     #[inline(always)]
     pub fn lane(&self, i: usize) -> CellSegment {
-        let r = self.rays;
-        let v =
-            |x: &[f32x8; 3]| Vec3::new(x[0].as_array()[i], x[1].as_array()[i], x[2].as_array()[i]);
-        CellSegment {
-            origin: v(&r.origin),
-            dir: v(&r.dir),
-            inv_dir: v(&r.inv_dir),
-            lo: self.lo,
-            hi: self.hi,
-            t_near: self.t_near.as_array()[i],
-            t_far: self.t_far.as_array()[i],
-        }
+        let (t_near, t_far) = (self.t_near.as_array()[i], self.t_far.as_array()[i]);
+        CellSegment::of(&self.rays.lane(i), self.lo, self.hi, t_near, t_far)
     }
 
     /// [`CellSegment::local_f32`] for every lane: cell-local entry points and displacements.

@@ -387,23 +387,11 @@ impl Deferred {
                 let k = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
                 ks[jobs.len()] = k;
-                let (h, i) = (k / 8, k % 8);
-                let r = &p.leaf[h];
-                let v = |x: &[f32x8; 3]| {
-                    glam::Vec3::new(x[0].as_array()[i], x[1].as_array()[i], x[2].as_array()[i])
-                };
                 let cell = self.cell[k];
                 let (lo, hi) = frame.cell_box(cell);
                 let (t_near, t_far) = self.segment[k];
-                let seg = CellSegment {
-                    origin: v(&r.origin),
-                    dir: v(&r.dir),
-                    inv_dir: v(&r.inv_dir),
-                    lo,
-                    hi,
-                    t_near,
-                    t_far,
-                };
+                let ray = p.leaf[k / 8].lane(k % 8);
+                let seg = CellSegment::of(&ray, lo, hi, t_near, t_far);
                 jobs.push(cell_corners(voxels, dims, cell), &seg);
             }
             let n = jobs.len();
