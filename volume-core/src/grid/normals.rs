@@ -190,6 +190,9 @@ pub fn normals_x8<T: Voxel>(
     let mut xr = [[T::default(); 8]; 16];
     let mut yr = [[T::default(); 8]; 8];
     let mut zr = [[T::default(); 8]; 8];
+    // A uniform axis' widths are `(k + 1) − (k − 1) = 2` in every lane: not loaded, and
+    // their reciprocal `1 / 2` is the exact `0.5` (no division).
+    let uniform = [0, 1, 2].map(|a| frame.is_uniform(a));
     let mut wd = [[1f32; 8]; 6];
     let mut pos = [[0f32; 8]; 3];
     let mut interior = 0u32;
@@ -216,7 +219,7 @@ pub fn normals_x8<T: Voxel>(
             row(base + y * sy - sz, &mut zr, y * 4, 2);
             row(base + y * sy + 2 * sz, &mut zr, y * 4 + 2, 2);
         }
-        for a in 0..3 {
+        for a in (0..3).filter(|&a| !uniform[a]) {
             let (p, k) = (&frame.pos[a], c[a]);
             wd[a * 2][i] = p[k + 1] - p[k - 1];
             wd[a * 2 + 1][i] = p[k + 2] - p[k];
@@ -229,7 +232,13 @@ pub fn normals_x8<T: Voxel>(
     let lanes = |r: [T; 8]| f32x8::from(r.map(Voxel::to_f32));
     let (xr, yr, zr) = (xr.map(lanes), yr.map(lanes), zr.map(lanes));
     let one = f32x8::ONE;
-    let inv = wd.map(|w| one / f32x8::from(w));
+    let inv: [f32x8; 6] = std::array::from_fn(|j| {
+        if uniform[j / 2] {
+            f32x8::splat(0.5)
+        } else {
+            one / f32x8::from(wd[j])
+        }
+    });
     let [u, v, w] = pos.map(f32x8::from);
     let corner = |x: usize, y: usize, z: usize| xr[(z * 2 + y) * 4 + x + 1];
     let (mut gx, mut gy, mut gz) = (f32x8::ZERO, f32x8::ZERO, f32x8::ZERO);
@@ -590,16 +599,19 @@ mod tests {
     /// The lanes of [`normals_x8`] against [`normal_at`] one by one, bit for bit: random
     /// cells (border cells and a constant block among them, which take the fallbacks) at
     /// random positions, an uneven sheared and rotated grid, lanes of 1 to 8, each voxel type
-    /// kind (`f64` takes `normal_at` in every lane).
+    /// kind (`f64` takes `normal_at` in every lane); then uniform x and z axes with an
+    /// uneven y (the lanes' widths of a uniform axis are not loaded).
     #[test]
     fn normals_in_lanes_equal_normal_at_bit_for_bit() {
-        lanes_equal_normal_at::<u8>(255.0, 11);
-        lanes_equal_normal_at::<i16>(3000.0, 12);
-        lanes_equal_normal_at::<f32>(1.0, 13);
-        lanes_equal_normal_at::<f64>(1.0, 14);
+        for uniform in [[false; 3], [true, false, true]] {
+            lanes_equal_normal_at::<u8>(255.0, 11, uniform);
+            lanes_equal_normal_at::<i16>(3000.0, 12, uniform);
+            lanes_equal_normal_at::<f32>(1.0, 13, uniform);
+            lanes_equal_normal_at::<f64>(1.0, 14, uniform);
+        }
     }
 
-    fn lanes_equal_normal_at<T: Voxel>(scale: f64, seed: u64) {
+    fn lanes_equal_normal_at<T: Voxel>(scale: f64, seed: u64, uniform: [bool; 3]) {
         let mut rng = Rng::new(seed);
         let dims = [9, 8, 7];
         let world = glam::DAffine3::from_rotation_z(0.7)
@@ -608,9 +620,16 @@ mod tests {
                 DVec3::new(0.3, 1.0, 0.0),
                 DVec3::new(0.0, 0.2, 1.5),
             ));
-        let axes = [0, 1, 2].map(|a| explicit_axis(&mut rng, dims[a]));
+        let axes = [0, 1, 2].map(|a| match uniform[a] {
+            true => AxisCoords::Uniform {
+                origin: -2.0,
+                spacing: 0.7 + a as f64,
+            },
+            false => explicit_axis(&mut rng, dims[a]),
+        });
         let grid = Grid::new(dims, axes, Some(world)).unwrap();
         let frame = TraversalFrame::new(&grid);
+        assert_eq!([0, 1, 2].map(|a| frame.is_uniform(a)), uniform);
         let voxels: Vec<T> = (0..grid.voxel_count())
             .map(|v| {
                 // A constant block around (2..5, 2..5, 2..5): vanishing gradients there.

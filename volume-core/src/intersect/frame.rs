@@ -53,6 +53,9 @@ pub struct TraversalFrame {
     world_bounds: Aabb,
     /// The far corner of the volume in traversal units (`pos[a][cells[a]]`; zero when empty).
     upper: Vec3,
+    /// Per axis: uniform (and short enough that `pos[a][i] == i` exactly: every cell one
+    /// unit wide).
+    uniform: [bool; 3],
 }
 
 impl TraversalFrame {
@@ -61,6 +64,9 @@ impl TraversalFrame {
         let cells = grid.cell_dims();
         let origin_grid = grid.origin();
         let mut units = [1.0f64; 3];
+        // `i as f32` is exact below 2^24 samples.
+        let uniform = [0, 1, 2]
+            .map(|a| matches!(grid.axis(a), AxisCoords::Uniform { .. }) && dims[a] <= 1 << 24);
         let pos: [Box<[f32]>; 3] = std::array::from_fn(|a| match grid.axis(a) {
             AxisCoords::Uniform { spacing, .. } => {
                 units[a] = 1.0 / spacing;
@@ -112,7 +118,15 @@ impl TraversalFrame {
             world_gradient_from_local_f32: world_gradient_from_local.as_mat3(),
             world_bounds,
             upper,
+            uniform,
         }
+    }
+
+    /// Whether axis `a` is uniform: sample `i` at `pos[a][i] == i`, so a central difference
+    /// over two cells is 2 units wide.
+    #[inline]
+    pub(crate) fn is_uniform(&self, a: usize) -> bool {
+        self.uniform[a]
     }
 
     /// Cells per axis (`dims − 1`).
