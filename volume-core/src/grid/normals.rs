@@ -190,9 +190,10 @@ pub fn normals_x8<T: Voxel>(
     let mut xr = [[T::default(); 8]; 16];
     let mut yr = [[T::default(); 8]; 8];
     let mut zr = [[T::default(); 8]; 8];
-    // A uniform axis' widths are `(k + 1) − (k − 1) = 2` in every lane: not loaded, and
-    // their reciprocal `1 / 2` is the exact `0.5` (no division).
-    let uniform = [0, 1, 2].map(|a| frame.is_uniform(a));
+    // An axis whose two-cell spans all have one width (2 on a uniform axis) gives it to
+    // every lane: not loaded per lane, and its reciprocal is divided once, not per call
+    // and lane (the same `f32` division, so the same bits).
+    let shared = [0, 1, 2].map(|a| frame.central_width(a));
     let mut wd = [[1f32; 8]; 6];
     let mut pos = [[0f32; 8]; 3];
     let mut interior = 0u32;
@@ -219,7 +220,7 @@ pub fn normals_x8<T: Voxel>(
             row(base + y * sy - sz, &mut zr, y * 4, 2);
             row(base + y * sy + 2 * sz, &mut zr, y * 4 + 2, 2);
         }
-        for a in (0..3).filter(|&a| !uniform[a]) {
+        for a in (0..3).filter(|&a| shared[a].is_none()) {
             let (p, k) = (&frame.pos[a], c[a]);
             wd[a * 2][i] = p[k + 1] - p[k - 1];
             wd[a * 2 + 1][i] = p[k + 2] - p[k];
@@ -232,12 +233,9 @@ pub fn normals_x8<T: Voxel>(
     let lanes = |r: [T; 8]| f32x8::from(r.map(Voxel::to_f32));
     let (xr, yr, zr) = (xr.map(lanes), yr.map(lanes), zr.map(lanes));
     let one = f32x8::ONE;
-    let inv: [f32x8; 6] = std::array::from_fn(|j| {
-        if uniform[j / 2] {
-            f32x8::splat(0.5)
-        } else {
-            one / f32x8::from(wd[j])
-        }
+    let inv: [f32x8; 6] = std::array::from_fn(|j| match shared[j / 2] {
+        Some(w) => f32x8::splat(1.0 / w),
+        None => one / f32x8::from(wd[j]),
     });
     let [u, v, w] = pos.map(f32x8::from);
     let corner = |x: usize, y: usize, z: usize| xr[(z * 2 + y) * 4 + x + 1];
@@ -603,15 +601,20 @@ mod tests {
     /// uneven y (the lanes' widths of a uniform axis are not loaded).
     #[test]
     fn normals_in_lanes_equal_normal_at_bit_for_bit() {
-        for uniform in [[false; 3], [true, false, true]] {
-            lanes_equal_normal_at::<u8>(255.0, 11, uniform);
-            lanes_equal_normal_at::<i16>(3000.0, 12, uniform);
-            lanes_equal_normal_at::<f32>(1.0, 13, uniform);
-            lanes_equal_normal_at::<f64>(1.0, 14, uniform);
+        for (uniform, coarse) in [([false; 3], false), ([true, false, true], false)]
+            .into_iter()
+            .chain([([true, false, true], true)])
+        {
+            lanes_equal_normal_at::<u8>(255.0, 11, uniform, coarse);
+            lanes_equal_normal_at::<i16>(3000.0, 12, uniform, coarse);
+            lanes_equal_normal_at::<f32>(1.0, 13, uniform, coarse);
+            lanes_equal_normal_at::<f64>(1.0, 14, uniform, coarse);
         }
     }
 
-    fn lanes_equal_normal_at<T: Voxel>(scale: f64, seed: u64, uniform: [bool; 3]) {
+    /// `coarse`: the positions replaced as a level-1 treelet's are (every other sample of
+    /// the volume, from an offset: two-cell spans of 4 units on a uniform axis).
+    fn lanes_equal_normal_at<T: Voxel>(scale: f64, seed: u64, uniform: [bool; 3], coarse: bool) {
         let mut rng = Rng::new(seed);
         let dims = [9, 8, 7];
         let world = glam::DAffine3::from_rotation_z(0.7)
@@ -628,8 +631,19 @@ mod tests {
             false => explicit_axis(&mut rng, dims[a]),
         });
         let grid = Grid::new(dims, axes, Some(world)).unwrap();
-        let frame = TraversalFrame::new(&grid);
-        assert_eq!([0, 1, 2].map(|a| frame.is_uniform(a)), uniform);
+        let mut frame = TraversalFrame::new(&grid);
+        if coarse {
+            let pos = frame
+                .pos
+                .each_ref()
+                .map(|p| p.iter().map(|&x| 2.0 * x + 10.0).collect());
+            frame.set_positions(pos);
+        }
+        let span = if coarse { 4.0 } else { 2.0 };
+        assert_eq!(
+            [0, 1, 2].map(|a| frame.central_width(a)),
+            uniform.map(|u| u.then_some(span))
+        );
         let voxels: Vec<T> = (0..grid.voxel_count())
             .map(|v| {
                 // A constant block around (2..5, 2..5, 2..5): vanishing gradients there.

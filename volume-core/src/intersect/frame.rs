@@ -53,9 +53,11 @@ pub struct TraversalFrame {
     world_bounds: Aabb,
     /// The far corner of the volume in traversal units (`pos[a][cells[a]]`; zero when empty).
     upper: Vec3,
-    /// Per axis: uniform (and short enough that `pos[a][i] == i` exactly: every cell one
-    /// unit wide).
-    uniform: [bool; 3],
+    /// Per axis, the width of every two-cell span, `pos[a][k + 2] − pos[a][k]` (as `f32`
+    /// computes it), when it is one value along the whole axis (2 on a uniform axis, `2^(l+1)`
+    /// in a level-`l` treelet of one); `None` otherwise. Kept with `pos` by
+    /// [`TraversalFrame::set_positions`].
+    central_width: [Option<f32>; 3],
 }
 
 impl TraversalFrame {
@@ -64,9 +66,6 @@ impl TraversalFrame {
         let cells = grid.cell_dims();
         let origin_grid = grid.origin();
         let mut units = [1.0f64; 3];
-        // `i as f32` is exact below 2^24 samples.
-        let uniform = [0, 1, 2]
-            .map(|a| matches!(grid.axis(a), AxisCoords::Uniform { .. }) && dims[a] <= 1 << 24);
         let pos: [Box<[f32]>; 3] = std::array::from_fn(|a| match grid.axis(a) {
             AxisCoords::Uniform { spacing, .. } => {
                 units[a] = 1.0 / spacing;
@@ -107,6 +106,7 @@ impl TraversalFrame {
         } else {
             Vec3::from([0, 1, 2].map(|a| pos[a][cells[a]]))
         };
+        let widths = pos.each_ref().map(|p| central_width(p));
         Self {
             grid_from_world: grid.world_from_grid().map(|w| w.inverse()),
             world_from_grid: grid.world_from_grid(),
@@ -118,15 +118,22 @@ impl TraversalFrame {
             world_gradient_from_local_f32: world_gradient_from_local.as_mat3(),
             world_bounds,
             upper,
-            uniform,
+            central_width: widths,
         }
     }
 
-    /// Whether axis `a` is uniform: sample `i` at `pos[a][i] == i`, so a central difference
-    /// over two cells is 2 units wide.
+    /// Replaces the sample positions (a treelet's, from the whole volume's) and what is
+    /// derived from them for the shading normals.
+    pub(crate) fn set_positions(&mut self, pos: [Box<[f32]>; 3]) {
+        self.central_width = pos.each_ref().map(|p| central_width(p));
+        self.pos = pos;
+    }
+
+    /// The width `pos[a][k + 2] − pos[a][k]` shared by every `k` along axis `a`, if there is
+    /// one (a central difference's span: 2 on a uniform axis).
     #[inline]
-    pub(crate) fn is_uniform(&self, a: usize) -> bool {
-        self.uniform[a]
+    pub(crate) fn central_width(&self, a: usize) -> Option<f32> {
+        self.central_width[a]
     }
 
     /// Cells per axis (`dims − 1`).
@@ -431,9 +438,34 @@ pub fn slab(ray: &LocalRay, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Optio
     (t0 <= t1).then_some((t0, t1))
 }
 
+/// The `f32` difference `p[k + 2] − p[k]` when it is the same for every `k` (also when the
+/// axis has fewer than 3 samples, so there is no such `k`).
+fn central_width(p: &[f32]) -> Option<f32> {
+    let mut spans = p.windows(3).map(|w| w[2] - w[0]);
+    let Some(first) = spans.next() else {
+        return Some(2.0);
+    };
+    spans
+        .all(|w| w.to_bits() == first.to_bits())
+        .then_some(first)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_central_width_is_shared_only_when_every_two_cell_span_has_it() {
+        assert_eq!(central_width(&[0.0, 1.0, 2.0, 3.0, 4.0]), Some(2.0));
+        assert_eq!(central_width(&[10.0, 12.0, 14.0, 16.0]), Some(4.0));
+        assert_eq!(central_width(&[0.0, 1.0, 3.0, 4.0, 5.0]), None);
+        assert_eq!(central_width(&[0.0, 0.5, 1.0, 1.5]), Some(1.0));
+        // Fewer than 3 samples: no span, so no lane ever reads one.
+        assert_eq!(central_width(&[0.0, 7.0]), Some(2.0));
+        // A uniform axis past 2^24 samples: `i as f32` rounds, the spans differ.
+        let big: Vec<f32> = ((1 << 24) - 2..(1 << 24) + 4).map(|i| i as f32).collect();
+        assert_eq!(central_width(&big), None);
+    }
 
     #[test]
     fn uniform_far_origin_maps_to_index_units_and_keeps_t() {

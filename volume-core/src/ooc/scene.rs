@@ -259,13 +259,13 @@ impl<T: Voxel> Shared<T> {
         let rec = TreeletRecord::<T>::decode(&self.meta, level, index, &bytes)?;
         let mut frame = self.template.clone();
         let layout = &self.meta.layout;
-        frame.pos = std::array::from_fn(|a| {
+        frame.set_positions(std::array::from_fn(|a| {
             (0..rec.voxel_dims[a] as u64)
                 .map(|i| {
                     self.frame.pos[a][layout.lod_sample(level, a, rec.voxel_origin[a] + i) as usize]
                 })
                 .collect()
-        });
+        }));
         Ok(ResidentTreelet {
             rec,
             frame,
@@ -574,7 +574,7 @@ impl<T: Voxel> OocVolume<T> {
         }
         let frame = TraversalFrame::new(&meta.grid);
         let mut template = frame.clone();
-        template.pos = std::array::from_fn(|_| Box::default());
+        template.set_positions(std::array::from_fn(|_| Box::default()));
         let shared = Shared {
             storage,
             meta,
