@@ -623,12 +623,15 @@ mod tests {
                 DVec3::new(0.3, 1.0, 0.0),
                 DVec3::new(0.0, 0.2, 1.5),
             ));
-        let axes = [0, 1, 2].map(|a| match uniform[a] {
-            true => AxisCoords::Uniform {
-                origin: -2.0,
-                spacing: 0.7 + a as f64,
-            },
-            false => explicit_axis(&mut rng, dims[a]),
+        let axes = [0, 1, 2].map(|a| {
+            if uniform[a] {
+                AxisCoords::Uniform {
+                    origin: -2.0,
+                    spacing: 0.7 + a as f64,
+                }
+            } else {
+                explicit_axis(&mut rng, dims[a])
+            }
         });
         let grid = Grid::new(dims, axes, Some(world)).unwrap();
         let mut frame = TraversalFrame::new(&grid);
