@@ -74,10 +74,10 @@ impl<'a, T: Voxel> DdaScene<'a, T> {
                 let x = ray.origin[a];
                 let m = self.frame.locate(a, x);
                 cand[a][0] = m;
-                if x == self.frame.pos[a][m] && m > 0 {
+                if x == self.frame.pos()[a][m] && m > 0 {
                     cand[a][1] = m - 1;
                     ncand[a] = 2;
-                } else if x == self.frame.pos[a][m + 1] && m + 1 < cells[a] {
+                } else if x == self.frame.pos()[a][m + 1] && m + 1 < cells[a] {
                     cand[a][1] = m + 1;
                     ncand[a] = 2;
                 }
@@ -111,7 +111,7 @@ impl<'a, T: Voxel> DdaScene<'a, T> {
         stats: &mut S,
     ) -> Option<CellHit> {
         let cells = self.frame.cells();
-        let pos = &self.frame.pos;
+        let pos = &self.frame.pos();
         let tpos = |a: usize, i: usize| (pos[a][i] - ray.origin[a]) * ray.inv_dir[a];
         let mut cell = fixed;
         let mut t_next = [f32::INFINITY; 3];

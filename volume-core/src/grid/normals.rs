@@ -120,7 +120,7 @@ fn gradient_interior_f32<T: Voxel>(
     let v = |x: usize, y: usize, z: usize| xr[z][y][x + 1];
     // Inverse central-difference widths per axis for the cell's two sample planes.
     let inv_w = |a: usize| -> [f32; 2] {
-        let p = &frame.pos[a];
+        let p = &frame.pos()[a];
         let c = cell[a];
         [1.0 / (p[c + 1] - p[c - 1]), 1.0 / (p[c + 2] - p[c])]
     };
@@ -221,7 +221,7 @@ pub fn normals_x8<T: Voxel>(
             row(base + y * sy + 2 * sz, &mut zr, y * 4 + 2, 2);
         }
         for a in (0..3).filter(|&a| shared[a].is_none()) {
-            let (p, k) = (&frame.pos[a], c[a]);
+            let (p, k) = (&frame.pos()[a], c[a]);
             wd[a * 2][i] = p[k + 1] - p[k - 1];
             wd[a * 2 + 1][i] = p[k + 2] - p[k];
         }
@@ -422,7 +422,7 @@ pub fn sample_gradient_local<T: Voxel>(
             let mut w = v;
             w[a] = idx;
             let f = value(w[0], w[1], w[2]);
-            f.is_finite().then_some((f, f64::from(frame.pos[a][idx])))
+            f.is_finite().then_some((f, f64::from(frame.pos()[a][idx])))
         };
         let minus = if v[a] > 0 { sample(v[a] - 1) } else { None };
         let plus = if v[a] + 1 < dims[a] {
@@ -432,7 +432,7 @@ pub fn sample_gradient_local<T: Voxel>(
         };
         let here = f0
             .is_finite()
-            .then_some((f0, f64::from(frame.pos[a][v[a]])));
+            .then_some((f0, f64::from(frame.pos()[a][v[a]])));
         g[a] = match (minus, here, plus) {
             (Some((fm, xm)), _, Some((fp, xp))) => (fp - fm) / (xp - xm),
             (Some((fm, xm)), Some((fh, xh)), None) => (fh - fm) / (xh - xm),
@@ -601,10 +601,11 @@ mod tests {
     /// uneven y (the lanes' widths of a uniform axis are not loaded).
     #[test]
     fn normals_in_lanes_equal_normal_at_bit_for_bit() {
-        for (uniform, coarse) in [([false; 3], false), ([true, false, true], false)]
-            .into_iter()
-            .chain([([true, false, true], true)])
-        {
+        for (uniform, coarse) in [
+            ([false; 3], false),
+            ([true, false, true], false),
+            ([true, false, true], true),
+        ] {
             lanes_equal_normal_at::<u8>(255.0, 11, uniform, coarse);
             lanes_equal_normal_at::<i16>(3000.0, 12, uniform, coarse);
             lanes_equal_normal_at::<f32>(1.0, 13, uniform, coarse);
@@ -637,7 +638,7 @@ mod tests {
         let mut frame = TraversalFrame::new(&grid);
         if coarse {
             let pos = frame
-                .pos
+                .pos()
                 .each_ref()
                 .map(|p| p.iter().map(|&x| 2.0 * x + 10.0).collect());
             frame.set_positions(pos);

@@ -41,8 +41,9 @@ pub struct TraversalFrame {
     world_from_grid: Option<DAffine3>,
     origin_grid: DVec3,
     units_per_grid: DVec3,
-    /// Sample positions per axis in traversal units (`pos[a][0] == 0`).
-    pub pos: [Box<[f32]>; 3],
+    /// Sample positions per axis in traversal units (`pos[a][0] == 0`); written only with
+    /// what derives from them ([`TraversalFrame::set_positions`]).
+    pos: [Box<[f32]>; 3],
     cells: [usize; 3],
     /// Maps a gradient in traversal units to a world-space gradient
     /// (`M⁻ᵀ · diag(units_per_grid)`, with `M` the linear part of `world_from_grid`).
@@ -127,6 +128,12 @@ impl TraversalFrame {
     pub(crate) fn set_positions(&mut self, pos: [Box<[f32]>; 3]) {
         self.central_width = pos.each_ref().map(|p| central_width(p));
         self.pos = pos;
+    }
+
+    /// Sample positions per axis in traversal units (`pos()[a][0] == 0` for a whole volume).
+    #[inline(always)]
+    pub fn pos(&self) -> &[Box<[f32]>; 3] {
+        &self.pos
     }
 
     /// The width `pos[a][k + 2] − pos[a][k]` shared by every `k` along axis `a`, if there is
@@ -438,16 +445,12 @@ pub fn slab(ray: &LocalRay, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Optio
     (t0 <= t1).then_some((t0, t1))
 }
 
-/// The `f32` difference `p[k + 2] − p[k]` when it is the same for every `k` (also when the
-/// axis has fewer than 3 samples, so there is no such `k`).
+/// The `f32` difference `p[k + 2] − p[k]` when it is the same for every `k` (`None` without
+/// any `k`: an axis of fewer than 3 samples has no interior cell to read it).
 fn central_width(p: &[f32]) -> Option<f32> {
-    let mut spans = p.windows(3).map(|w| w[2] - w[0]);
-    let Some(first) = spans.next() else {
-        return Some(2.0);
-    };
-    spans
-        .all(|w| w.to_bits() == first.to_bits())
-        .then_some(first)
+    let mut spans = p.windows(3).map(|w| (w[2] - w[0]).to_bits());
+    let first = spans.next()?;
+    spans.all(|w| w == first).then_some(f32::from_bits(first))
 }
 
 #[cfg(test)]
@@ -460,8 +463,8 @@ mod tests {
         assert_eq!(central_width(&[10.0, 12.0, 14.0, 16.0]), Some(4.0));
         assert_eq!(central_width(&[0.0, 1.0, 3.0, 4.0, 5.0]), None);
         assert_eq!(central_width(&[0.0, 0.5, 1.0, 1.5]), Some(1.0));
-        // Fewer than 3 samples: no span, so no lane ever reads one.
-        assert_eq!(central_width(&[0.0, 7.0]), Some(2.0));
+        // Fewer than 3 samples: no span.
+        assert_eq!(central_width(&[0.0, 7.0]), None);
         // A uniform axis past 2^24 samples: `i as f32` rounds, the spans differ.
         let big: Vec<f32> = ((1 << 24) - 2..(1 << 24) + 4).map(|i| i as f32).collect();
         assert_eq!(central_width(&big), None);

@@ -255,7 +255,7 @@ impl<T: Voxel> KdTree<T> {
             for i in 0..lv.count[a] {
                 let m = i * lv.extent[a] + lv.extent[a] / 2;
                 self.splits.push(if m < self.cells[a] {
-                    frame.pos[a][m]
+                    frame.pos()[a][m]
                 } else {
                     f32::INFINITY
                 });

@@ -71,7 +71,7 @@ impl<T: Voxel> ResidentTreelet<T> {
     fn bytes(&self) -> u64 {
         (self.rec.nodes.len()
             + self.rec.voxels.len() * size_of::<T>()
-            + self.frame.pos.iter().map(|p| p.len() * 4).sum::<usize>()
+            + self.frame.pos().iter().map(|p| p.len() * 4).sum::<usize>()
             + size_of::<Self>()) as u64
     }
 }
@@ -262,7 +262,8 @@ impl<T: Voxel> Shared<T> {
         frame.set_positions(std::array::from_fn(|a| {
             (0..rec.voxel_dims[a] as u64)
                 .map(|i| {
-                    self.frame.pos[a][layout.lod_sample(level, a, rec.voxel_origin[a] + i) as usize]
+                    self.frame.pos()[a]
+                        [layout.lod_sample(level, a, rec.voxel_origin[a] + i) as usize]
                 })
                 .collect()
         }));
@@ -1060,7 +1061,7 @@ impl<T: Voxel> OocScene<T> {
         let na = node[0] * u[0] + node[1] * u[1] + node[2] * u[2];
         let m = u64::from(na) * sh.extent[a] + sh.extent[a] / 2;
         let split = if m < layout.cells()[a] {
-            self.shared.frame.pos[a][m as usize]
+            self.shared.frame.pos()[a][m as usize]
         } else {
             f32::INFINITY
         };
