@@ -118,6 +118,9 @@ impl SegmentsX8<'_> {
 pub struct RootsX8 {
     pub s: [f64; LANES],
     pub mask: u32,
+    /// Lanes of `mask` whose root is certified the only one on their segment (the exact
+    /// intersector's cubic is monotone there): a search past it finds nothing more.
+    pub sole: u32,
 }
 
 /// Each lane's nearest hit in one cell: ray parameter and surface for the lanes in `mask`.
@@ -126,6 +129,10 @@ pub struct HitsX8 {
     pub t: [f32; LANES],
     pub surface: [u32; LANES],
     pub mask: u32,
+    /// Lanes of `mask` whose hit is the only crossing of any active isovalue on their
+    /// segment through the cell ([`RootsX8::sole`]): going on past it, they need not test
+    /// the cell again.
+    pub sole: u32,
     /// Lanes whose hit in this cell is certain but left for later (see `may_defer`), and
     /// their segments through the cell (set only when some lane is deferred).
     pub deferred: u32,
@@ -151,6 +158,7 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         t: [0.0; LANES],
         surface: [0; LANES],
         mask: 0,
+        sole: 0,
         deferred: 0,
         t_near: [0.0; LANES],
         t_far: [0.0; LANES],
@@ -183,6 +191,8 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
     } else {
         0
     };
+    // Lanes with a root of more than one isovalue: not sole, whichever is nearer.
+    let mut several = 0u32;
     isos.for_each_in(pc.min, pc.max, |iso, surface| {
         for _ in 0..mask.count_ones() {
             stats.intersection();
@@ -190,6 +200,7 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         let (roots, deferred) =
             intersector.first_roots_x8_deferring(&pc.corners, iso, &seg, mask, may_defer);
         hits.deferred |= deferred;
+        several |= hits.mask & roots.mask;
         let mut bits = roots.mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
@@ -199,9 +210,11 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
                 hits.t[i] = t;
                 hits.surface[i] = surface;
                 hits.mask |= 1 << i;
+                hits.sole = hits.sole & !(1 << i) | roots.sole & (1 << i);
             }
         }
     });
+    hits.sole &= !several;
     if hits.deferred != 0 {
         (hits.t_near, hits.t_far) = (tn, tf);
     }

@@ -51,6 +51,7 @@ pub(crate) fn exact_slow_x8<T: Voxel>(
         return RootsX8 {
             s: [0.0; 8],
             mask: lanes,
+            sole: 0,
         };
     };
     let rays = seg.rays;
@@ -278,6 +279,8 @@ fn slow_lanes(c: &LaneCells, lanes: u32, scalar: impl Fn(usize) -> Option<f64>) 
     let mut r = RootsX8 {
         s: tf.simd_gt(tn).select((t - tn) / (tf - tn), zero).to_array(),
         mask: at_start | at_end | crossing,
+        // A strictly monotone cubic crosses zero once at most on the segment.
+        sole: (at_start | at_end | crossing) & bits(monotone),
     };
     for i in lane_indices(scalar_lanes & lanes) {
         if let Some(s) = scalar(i) {
@@ -372,7 +375,7 @@ mod tests {
         rng: &mut Rng,
         corner: impl Fn(&mut Rng) -> T,
         iso: f32,
-        seen: &mut [usize; 3],
+        seen: &mut [usize; 4],
     ) {
         // Half the cells a uniform axis' (integer corners, unit width: the branch without
         // divisions by the width), half of random size.
@@ -426,6 +429,57 @@ mod tests {
             seen[usize::from(want.is_some())] += 1;
             seen[2] += usize::from(want.is_some_and(|s| s > 0.0 && s < 1.0));
         }
+        assert_eq!(got.sole & !got.mask, 0, "only lanes with a root are sole");
+        for i in lane_indices(got.sole) {
+            seen[3] += usize::from(sole_root_is_the_only_crossing(
+                &corners,
+                iso,
+                &seg.lane(i),
+                got.s[i],
+            ));
+        }
+    }
+
+    /// Past a lane's sole root, the trilinear interpolant (in `f64`, from its definition)
+    /// keeps the sign it has at the segment's end: a search from there finds no crossing.
+    /// Returns whether any point past the root was checked.
+    fn sole_root_is_the_only_crossing<T: Voxel>(
+        corners: &[T; 8],
+        iso: f32,
+        lane: &CellSegment,
+        s: f64,
+    ) -> bool {
+        let g = corners.map(|v| v.to_f64() - f64::from(iso));
+        let scale: f64 = g.iter().map(|x| x.abs()).sum();
+        let (o, d) = (lane.origin.as_dvec3(), lane.dir.as_dvec3());
+        let (lo, w) = (lane.lo.as_dvec3(), (lane.hi - lane.lo).as_dvec3());
+        let f = |t: f64| {
+            let p = ((o + d * t - lo) / w).to_array();
+            let mut f = 0.0;
+            for (c, gc) in g.iter().enumerate() {
+                let wt = |a: usize| if c >> a & 1 == 1 { p[a] } else { 1.0 - p[a] };
+                f += gc * wt(0) * wt(1) * wt(2);
+            }
+            f
+        };
+        let (tn, tf) = (f64::from(lane.t_near), f64::from(lane.t_far));
+        let root = tn + s * (tf - tn);
+        // Past the root by more than its rounding (a quarter `f32` ulp of `t`), as a
+        // peeled ray's next search starts (`Peel::next_t`).
+        let from = root + 1e-5 * (1.0 + root.abs()) + 1e-3 * (tf - tn);
+        let end = f(tf);
+        if from >= tf || end.abs() <= 1e-9 * scale {
+            return false;
+        }
+        for j in 0..=64 {
+            let t = from + (tf - from) * f64::from(j) / 64.0;
+            let v = f(t);
+            assert!(
+                v * end.signum() > -1e-9 * scale,
+                "a crossing past the sole root {root} at t = {t} (f = {v}, end {end}): corners {corners:?}, iso {iso}, {lane:?}"
+            );
+        }
+        true
     }
 
     /// Jobs from 8 different cells side by side: each lane's root equals the scalar slow
@@ -497,7 +551,7 @@ mod tests {
     #[test]
     fn lanes_side_by_side_equal_the_scalar_slow_path() {
         let mut rng = Rng::new(2026);
-        let mut seen = [0usize; 3];
+        let mut seen = [0usize; 4];
         for _ in 0..4000 {
             lanes_equal_scalar(
                 &mut rng,
@@ -521,7 +575,10 @@ mod tests {
                 &mut seen,
             );
         }
-        let [none, some, inside] = seen;
-        assert!(none > 5_000 && some > 5_000 && inside > 5_000, "{seen:?}");
+        let [none, some, inside, sole] = seen;
+        assert!(
+            none > 5_000 && some > 5_000 && inside > 5_000 && sole > 2_000,
+            "{seen:?}"
+        );
     }
 }

@@ -252,7 +252,8 @@ pub(crate) fn ray_go_on(
 /// calls `on_hit(k, hit)` for a hit nearer than `best[k]` and returns the updated `best` as
 /// lanes. A lane that goes on past its hit ([`LaneNext::GoOnFrom`]) has its interval start
 /// moved there and the cell tested again for it, so its next hit is the one a new ray from
-/// that distance would find. Even one active ray of a half takes the lanes: measured against
+/// that distance would find; not when the hit was certified the cell's only crossing on the
+/// lane's segment ([`HitsX8::sole`]), where that test would find none. Even one active ray of a half takes the lanes: measured against
 /// a scalar test for halves of one or two rays, the lanes were no slower
 /// (docs/benchmarks.md).
 #[allow(clippy::too_many_arguments)]
@@ -314,7 +315,9 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
                             let mut t_lo = half_rays.t_lo.to_array();
                             t_lo[i] = t;
                             half_rays.t_lo = f32x8::new(t_lo);
-                            again |= 1 << i;
+                            // The cell's only crossing on the lane's segment: a test past it
+                            // would find nothing.
+                            again |= !hits.sole & (1 << i);
                         }
                     }
                 }
