@@ -421,7 +421,8 @@ impl<T: Voxel> GridScene<T> {
                     isos,
                     intersector,
                     stats,
-                    false,
+                    // Hits on opaque surfaces end their lane (`LaneLayers::add`).
+                    peel.opaque,
                     |k, hit| layers.add(from + k, hit),
                 );
             });

@@ -439,6 +439,17 @@ impl<T: Voxel> IsoSet<T> {
             .any(|&(lo, hi, _, _)| min <= lo && max >= hi)
     }
 
+    /// The isovalue inside `[min, max]` and its surface, when exactly one is.
+    #[inline(always)]
+    pub fn only_in(&self, min: T, max: T) -> Option<(f32, u32)> {
+        let (mut n, mut found) = (0, None);
+        self.for_each_in(min, max, |iso, surface| {
+            n += 1;
+            found = Some((iso, surface));
+        });
+        found.filter(|_| n == 1)
+    }
+
     /// Calls `f(iso, surface)` for each isovalue inside `[min, max]`.
     #[inline(always)]
     pub fn for_each_in(&self, min: T, max: T, mut f: impl FnMut(f32, u32)) {

@@ -133,23 +133,28 @@ pub struct HitsX8 {
     /// segment through the cell ([`RootsX8::sole`]): going on past it, they need not test
     /// the cell again.
     pub sole: u32,
-    /// Lanes whose hit in this cell is certain but left for later (see `may_defer`), and
-    /// their segments through the cell (set only when some lane is deferred).
+    /// Lanes whose hit in this cell is certain but left for later (see `may_defer`), the
+    /// cell's isovalue and surface, and their segments through the cell (set only when some
+    /// lane is deferred).
     pub deferred: u32,
+    pub deferred_iso: (f32, u32),
     pub t_near: [f32; LANES],
     pub t_far: [f32; LANES],
 }
 
 /// [`super::intersect_prepared_cell`] for the lanes of `active` (no leaf is counted here).
-/// With a set of one isovalue, lanes of `may_defer` that certainly cross the surface in
-/// this cell may be returned as `deferred` instead of with a hit
+/// In a cell whose range holds one of the isovalues only, of a surface in the bit set
+/// `defers` (surfaces whose hit ends the lane), lanes of `may_defer` that certainly cross
+/// the surface may be returned as `deferred` instead of with a hit
 /// ([`CellIntersector::first_roots_x8_deferring`]).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
     pc: &PreparedCell<T>,
     rays: &RaysX8,
     active: u32,
     may_defer: u32,
+    defers: u64,
     isos: &IsoSet<T>,
     intersector: C,
     stats: &mut S,
@@ -160,6 +165,7 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         mask: 0,
         sole: 0,
         deferred: 0,
+        deferred_iso: (0.0, 0),
         t_near: [0.0; LANES],
         t_far: [0.0; LANES],
     };
@@ -185,8 +191,15 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         t_far: t1,
     };
     let (tn, tf) = (t0.to_array(), t1.to_array());
-    // Deferring is for one isovalue: with more, a lane's hit is the nearest of theirs.
-    let may_defer = if isos.single().is_some() {
+    // Deferring needs the cell's only isovalue: with more, a lane's hit is the nearest of
+    // theirs.
+    let defer_iso = if may_defer & mask != 0 {
+        isos.only_in(pc.min, pc.max)
+            .filter(|&(_, surface)| surface < 64 && defers >> surface & 1 == 1)
+    } else {
+        None
+    };
+    let may_defer = if defer_iso.is_some() {
         may_defer & mask
     } else {
         0
@@ -215,8 +228,11 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
         }
     });
     hits.sole &= !several;
-    if hits.deferred != 0 {
+    if hits.deferred != 0
+        && let Some(iso) = defer_iso
+    {
         (hits.t_near, hits.t_far) = (tn, tf);
+        hits.deferred_iso = iso;
     }
     hits
 }
@@ -349,7 +365,7 @@ mod tests {
         let active = rng.next_u32() & 0xff | 1;
         let packet = RaysX8::from_rays(&rays, f32x8::new(t_lo), f32x8::new(t_hi));
         let mut st_x8 = CountStats::default();
-        let got = intersect_prepared_cell_x8(&pc, &packet, active, 0, &isos, c, &mut st_x8);
+        let got = intersect_prepared_cell_x8(&pc, &packet, active, 0, 0, &isos, c, &mut st_x8);
         let mut st_1 = CountStats::default();
         for i in 0..LANES {
             let want = if active & (1 << i) != 0 {

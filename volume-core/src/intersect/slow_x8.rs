@@ -15,10 +15,10 @@
 //! to isolate first, [`super::methods::first_root_f64`]) take the scalar path: about one call
 //! in twenty on the MNI frame, and their branches differ by lane.
 //!
-//! The lanes need not share a cell ([`exact_slow_jobs`]): a first-hit packet with one
-//! isovalue leaves the roots of its certain crossings for after its walk and refines them 8 at
-//! a time, whatever cells they lie in ([`crate::kdtree`]'s `Deferred`), instead of the two or
-//! three lanes that meet the surface in one cell. Both entry points fill the same lanes
+//! The lanes need not share a cell ([`exact_slow_jobs`]): a packet leaves the roots of the
+//! certain crossings that end its lanes for after its walk and refines them 8 at a time,
+//! whatever cells they lie in ([`crate::kdtree`]'s `Deferred`), instead of the two or three
+//! lanes that meet the surface in one cell. Both entry points fill the same lanes
 //! (`LaneCells`) and run the same steps.
 
 use wide::{f32x8, f64x8};
@@ -476,7 +476,8 @@ mod tests {
             let v = f(t);
             assert!(
                 v * end.signum() > -1e-9 * scale,
-                "a crossing past the sole root {root} at t = {t} (f = {v}, end {end}): corners {corners:?}, iso {iso}, {lane:?}"
+                "a crossing past the sole root {root} at t = {t} (f = {v}, end {end}): \
+                 corners {corners:?}, iso {iso}, {lane:?}"
             );
         }
         true

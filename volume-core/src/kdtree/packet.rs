@@ -13,11 +13,14 @@
 //! no zero component; [`crate::grid::GridScene`] splits other groups into packets of 8
 //! or traces them one by one.
 //!
-//! A first-hit walk with one isovalue need not know where in a cell its lane's crossing
-//! lies, only that it is there: a lane whose crossing the `f32` filter certifies (end values
-//! of opposite signs beyond the error bound) is cut at the cell's far end and its root found
-//! after the walk, with the other such lanes, 8 at a time by the `f64` slow path (`Deferred`;
-//! the same roots, so the same hits as single rays, tested).
+//! A walk whose lane ends at its hit (a first hit, or an opaque surface's behind transparent
+//! layers) need not know where in a cell that crossing lies, only that it is there: in a
+//! cell whose range holds one active isovalue only, a lane whose crossing the `f32` filter
+//! certifies (end values of opposite signs beyond the error bound) is cut at the cell's far
+//! end and its root found after the walk, with the other such lanes of that isovalue, 8 at a
+//! time by the `f64` slow path (`Deferred`; the same roots, so the same hits as single rays,
+//! tested). A lane that goes on past a transparent layer tests its cell again from there,
+//! unless the slow path certified that layer the cell's only crossing.
 
 use wide::f32x8;
 
@@ -253,9 +256,10 @@ pub(crate) fn ray_go_on(
 /// lanes. A lane that goes on past its hit ([`LaneNext::GoOnFrom`]) has its interval start
 /// moved there and the cell tested again for it, so its next hit is the one a new ray from
 /// that distance would find; not when the hit was certified the cell's only crossing on the
-/// lane's segment ([`HitsX8::sole`]), where that test would find none. Even one active ray of a half takes the lanes: measured against
-/// a scalar test for halves of one or two rays, the lanes were no slower
-/// (docs/benchmarks.md).
+/// lane's segment ([`HitsX8::sole`]), where that test would find none. `defer` takes the
+/// lanes whose certain crossing ends them ([`Deferred`]). Even one active ray of a half
+/// takes the lanes: measured against a scalar test for halves of one or two rays, the lanes
+/// were no slower (docs/benchmarks.md).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
@@ -281,13 +285,16 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     for (h, half_rays) in p.leaf.iter_mut().enumerate() {
         let mut test = (active >> (8 * h)) & 0xff;
         // A lane is deferred once at most (its cut then ends the walk for it).
-        let may_defer = defer.as_ref().map_or(0, |d| !(d.lanes >> (8 * h)) & 0xff);
+        let (may_defer, defers) = defer
+            .as_ref()
+            .map_or((0, 0), |d| (!(d.lanes >> (8 * h)) & 0xff, d.surfaces));
         while test != 0 {
             let hits = intersect_prepared_cell_x8(
                 &pc,
                 half_rays,
                 test,
                 may_defer,
+                defers,
                 isos,
                 intersector,
                 stats,
@@ -328,14 +335,19 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     lanes(best)
 }
 
-/// The lanes of a first-hit packet whose hit cell is known (the `f32` fast path certified a
-/// crossing there, [`crate::intersect::CellIntersector::first_roots_x8_deferring`]) but
-/// whose root the walk left for later: the slow path then runs on 8 of them at a time,
-/// whatever their cells, instead of on the few lanes of one cell each time.
+/// The lanes of a packet whose last hit's cell is known (the `f32` fast path certified a
+/// crossing there of the cell's only isovalue, of a surface that ends the lane,
+/// [`crate::intersect::CellIntersector::first_roots_x8_deferring`]) but whose root the walk
+/// left for later: the slow path then runs on 8 of them at a time, whatever their cells,
+/// instead of on the few lanes of one cell each time.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Deferred {
+    /// Bit `s`: hits on surface `s` end their lane, so they may be deferred (this walk's).
+    pub surfaces: u64,
     /// Bit `k`: lane `k` is deferred.
     pub lanes: u32,
+    /// The lane's isovalue and surface.
+    pub iso: [(f32, u32); PACKET_WIDTH],
     pub cell: [[usize; 3]; PACKET_WIDTH],
     /// The lane's segment through the cell.
     pub segment: [(f32, f32); PACKET_WIDTH],
@@ -357,6 +369,7 @@ impl Deferred {
         for i in lane_indices(hits.deferred) {
             let k = 8 * h + i;
             self.lanes |= 1 << k;
+            self.iso[k] = hits.deferred_iso;
             self.cell[k] = cell;
             self.segment[k] = (hits.t_near[i], hits.t_far[i]);
             self.cut[k] = best[k];
@@ -367,10 +380,11 @@ impl Deferred {
     }
 
     /// The deferred lanes' hits, handed to `on_hit` as the walk would have: the roots of
-    /// [`exact_slow_jobs`] (bit-identical to the cell test's), each lane's `t` as
-    /// [`intersect_prepared_cell_x8`] makes it. `retrace(k, t)` is lane `k`'s first hit
-    /// from `t` on, traced alone: for a lane whose certified crossing the slow path did not
-    /// find (not seen; a rounding case beyond the bound would otherwise drop the hit).
+    /// [`exact_slow_jobs`] (bit-identical to the cell test's; 8 lanes of one isovalue a
+    /// time), each lane's `t` as [`intersect_prepared_cell_x8`] makes it. `retrace(k, t)` is
+    /// lane `k`'s first hit from `t` on, traced alone: for a lane whose certified crossing the
+    /// slow path did not find (not seen; a rounding case beyond the bound would otherwise drop
+    /// the hit).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn resolve<T: Voxel>(
         &self,
@@ -378,17 +392,22 @@ impl Deferred {
         voxels: &[T],
         dims: [usize; 3],
         p: &PacketRays,
-        (iso, surface): (f32, u32),
         mut retrace: impl FnMut(usize, f32) -> Option<CellHit>,
         mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
     ) {
         let mut rest = self.lanes;
         while rest != 0 {
+            let (iso, surface) = self.iso[rest.trailing_zeros() as usize];
             let mut ks = [0usize; 8];
             let mut jobs = SlowJobs::new(iso);
-            while rest != 0 && jobs.len() < 8 {
-                let k = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
+            for k in lane_indices(rest) {
+                if jobs.len() == 8 {
+                    break;
+                }
+                if self.iso[k] != (iso, surface) {
+                    continue;
+                }
+                rest &= !(1 << k);
                 ks[jobs.len()] = k;
                 let cell = self.cell[k];
                 let (lo, hi) = frame.cell_box(cell);
@@ -479,7 +498,8 @@ impl<T: Voxel> KdTree<T> {
             isos,
             intersector,
             stats,
-            true,
+            // Every hit ends its lane.
+            u64::MAX,
             |k, hit| {
                 out[k] = Some(hit);
                 LaneNext::Stop(hit.t)
@@ -491,9 +511,9 @@ impl<T: Voxel> KdTree<T> {
     /// its lane's cut to `on_hit`, which says whether the lane stops there or goes on past
     /// it ([`packet_leaf`]): a first-hit search, or one that collects a ray's transparent
     /// layers as it goes ([`crate::render::IsoScene::peeled_hits_packet_prepared`]).
-    /// `first_hits`: every `on_hit` stops its lane ([`LaneNext::Stop`] at the hit), so a
-    /// lane whose hit cell is certain may have its root found after the walk ([`Deferred`];
-    /// one isovalue only).
+    /// `defers`: bit `s` when `on_hit` stops its lane at every hit on surface `s`
+    /// ([`LaneNext::Stop`] at the hit), so a lane whose such hit's cell is certain may have
+    /// its root found after the walk ([`Deferred`]; in cells holding that isovalue only).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(crate) fn walk_packet_in<C: CellIntersector, S: Stats>(
@@ -507,7 +527,7 @@ impl<T: Voxel> KdTree<T> {
         isos: &IsoSet<T>,
         intersector: C,
         stats: &mut S,
-        first_hits: bool,
+        defers: u64,
         mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
     ) {
         let PacketStack {
@@ -537,8 +557,8 @@ impl<T: Voxel> KdTree<T> {
         }
         let mut p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
         let (mut tn, mut tf) = (p.t_near, p.t_far);
-        let single = isos.single().filter(|_| first_hits);
         deferred.lanes = 0;
+        deferred.surfaces = defers;
         let mut best = [f32::INFINITY; PACKET_WIDTH];
         let mut best_v = splat(f32::INFINITY);
         let mut sp = 0usize;
@@ -563,7 +583,7 @@ impl<T: Voxel> KdTree<T> {
                         intersector,
                         stats,
                         &mut best,
-                        single.is_some().then_some(&mut *deferred),
+                        (defers != 0).then_some(&mut *deferred),
                         &mut on_hit,
                     );
                     break;
@@ -600,11 +620,11 @@ impl<T: Voxel> KdTree<T> {
                 }
             }
         }
-        if let Some(single) = single.filter(|_| deferred.lanes != 0) {
+        if deferred.lanes != 0 {
             let retrace = |k: usize, t: f32| {
                 self.first_hit(frame, voxels, &rays[k], t, t1[k], isos, intersector, stats)
             };
-            deferred.resolve(frame, voxels, self.dims, &p, single, retrace, on_hit);
+            deferred.resolve(frame, voxels, self.dims, &p, retrace, on_hit);
         }
     }
 }
