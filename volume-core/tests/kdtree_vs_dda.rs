@@ -565,9 +565,19 @@ fn packets_equal_single<T: Voxel>(
                 .collect();
             let mut out = vec![None; n];
             scene.first_hit_packet(&rays, &t0, &t1, isos, &mut out, &mut NoStats);
+            // Shadow-ray packets: a hit exactly where the first-hit packets find one.
+            let mut occluded = vec![false; n];
+            let prepared = scene.prepare(isos);
+            scene.occluded_packet_prepared(&rays, &t0, &t1, &prepared, &mut occluded, &mut NoStats);
             for i in 0..n {
                 let single = scene.first_hit(&rays[i], t0[i], t1[i], isos, &mut NoStats);
                 assert_eq!(out[i], single, "ray {i} of {n}: {:?}", rays[i]);
+                assert_eq!(
+                    occluded[i],
+                    single.is_some(),
+                    "occluded, ray {i} of {n}: {:?}",
+                    rays[i]
+                );
                 hits += usize::from(single.is_some());
             }
             layers += peeled_equal_reshot(&scene, &rays, &t0, &t1, isos, rng);

@@ -23,7 +23,7 @@ use super::hit::{
 use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
-use crate::kdtree::packet::ray_go_on;
+use crate::kdtree::packet::{WalkFor, ray_go_on};
 use crate::kdtree::{
     KdTree, KdTreeConfig, LIVE_COVER_NODES, PACKET_WIDTH, packet_compatible, with_packet_stack,
 };
@@ -363,6 +363,25 @@ impl<T: Voxel> IsoScene for GridScene<T> {
         });
     }
 
+    /// Shadow rays in packets that end each lane at its first hit found and refine no
+    /// certain crossing ([`KdTree::any_hit_packet_in`]); no hit point or normal is made.
+    fn occluded_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        crate::dispatch_intersector!(self.intersector, c => {
+            for (start, chunk) in rays.chunks(PACKET_WIDTH).enumerate() {
+                let base = start * PACKET_WIDTH;
+                self.occluded_packet(chunk, &t_min[base..], &t_max[base..], isos, c, &mut out[base..], stats);
+            }
+        });
+    }
+
     /// The packets go on past transparent hits: a lane that hits a transparent layer has
     /// its cell tested again from [`Peel::next_t`] and walks on with its packet through the
     /// cells that follow ([`KdTree`]'s packet walk), instead of a new ray descending from
@@ -387,6 +406,61 @@ impl<T: Voxel> IsoScene for GridScene<T> {
 }
 
 impl<T: Voxel> GridScene<T> {
+    /// [`IsoScene::occluded_packet_prepared`] for up to [`PACKET_WIDTH`] rays with a static
+    /// intersector; rays that cannot travel as one packet go as groups of 8 or one by one,
+    /// as in [`first_hits_packet_with`].
+    #[allow(clippy::too_many_arguments)]
+    fn occluded_packet<C: CellIntersector, S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        let lp = LocalPacket::new(&self.frame, rays, t_min, t_max);
+        let (n, local, t0, t1) = (lp.n, &lp.local, &lp.t0, &lp.t1);
+        for _ in 0..n {
+            stats.ray();
+        }
+        let voxels = self.voxels.as_slice();
+        let walk = |from: usize, to: usize, out: &mut [bool], stats: &mut S| {
+            with_packet_stack(|stack| {
+                self.tree.any_hit_packet_in(
+                    stack,
+                    &self.frame,
+                    voxels,
+                    &local[from..to],
+                    &t0[from..to],
+                    &t1[from..to],
+                    isos,
+                    intersector,
+                    stats,
+                    &mut out[from..to],
+                );
+            });
+        };
+        if lp.one_packet {
+            walk(0, n, out, stats);
+            return;
+        }
+        for from in (0..n).step_by(8) {
+            let to = (from + 8).min(n);
+            if packet_compatible(&local[from..to]) {
+                walk(from, to, out, stats);
+                continue;
+            }
+            for i in from..to {
+                out[i] = t0[i] <= t1[i]
+                    && self
+                        .cell_hit_with(&local[i], t0[i], t1[i], isos, intersector, stats)
+                        .is_some();
+            }
+        }
+    }
+
     /// [`IsoScene::peeled_hits_packet_prepared`] for up to [`PACKET_WIDTH`] rays with a
     /// static intersector; rays that cannot travel as one packet go as groups of 8 or one by
     /// one, as in [`first_hits_packet_with`].
@@ -423,6 +497,7 @@ impl<T: Voxel> GridScene<T> {
                     stats,
                     // Hits on opaque surfaces end their lane (`LaneLayers::add`).
                     peel.opaque,
+                    WalkFor::Hits,
                     |k, hit| layers.add(from + k, hit),
                 );
             });
@@ -668,6 +743,20 @@ impl IsoScene for AnyGridScene {
     ) {
         crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
             s.first_hit_packet_prepared(rays, t_min, t_max, i, out, stats);
+        }; else isovalues_of_another_type());
+    }
+
+    fn occluded_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &AnyIsoSet,
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        crate::match_voxel!(AnyGridScene, self, s; AnyIsoSet, isos, i => {
+            s.occluded_packet_prepared(rays, t_min, t_max, i, out, stats);
         }; else isovalues_of_another_type());
     }
 

@@ -335,6 +335,15 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     lanes(best)
 }
 
+/// What a packet walk's hits are for ([`KdTree::walk_packet_in`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum WalkFor {
+    /// Where each lane hits.
+    Hits,
+    /// Whether each lane hits (shadow rays): certain crossings are not refined.
+    AnyHit,
+}
+
 /// The lanes of a packet whose last hit's cell is known (the `f32` fast path certified a
 /// crossing there of the cell's only isovalue, of a surface that ends the lane,
 /// [`crate::intersect::CellIntersector::first_roots_x8_deferring`]) but whose root the walk
@@ -469,6 +478,48 @@ impl<T: Voxel> KdTree<T> {
         );
     }
 
+    /// Whether each of up to [`PACKET_WIDTH`] [`packet_compatible`] rays has a hit in
+    /// `[t0[i], t1[i]]` (shadow rays), written to `out[i]`: a lane ends at its first hit
+    /// found, and a certain crossing is not refined at all ([`Deferred`]'s lanes hit).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn any_hit_packet_in<C: CellIntersector, S: Stats>(
+        &self,
+        stack: &mut PacketStack,
+        frame: &TraversalFrame,
+        voxels: &[T],
+        rays: &[LocalRay],
+        t0: &[f32],
+        t1: &[f32],
+        isos: &IsoSet<T>,
+        intersector: C,
+        stats: &mut S,
+        out: &mut [bool],
+    ) {
+        let n = rays.len().min(PACKET_WIDTH);
+        for o in &mut out[..n] {
+            *o = false;
+        }
+        self.walk_packet_in(
+            stack,
+            frame,
+            voxels,
+            rays,
+            t0,
+            t1,
+            isos,
+            intersector,
+            stats,
+            u64::MAX,
+            WalkFor::AnyHit,
+            |k, _| {
+                out[k] = true;
+                // Nothing past it is live for the lane.
+                LaneNext::Stop(f32::NEG_INFINITY)
+            },
+        );
+    }
+
     /// [`KdTree::first_hit_packet`] with a caller's stack (reused across packets).
     #[inline]
     pub fn first_hit_packet_in<C: CellIntersector, S: Stats>(
@@ -500,6 +551,7 @@ impl<T: Voxel> KdTree<T> {
             stats,
             // Every hit ends its lane.
             u64::MAX,
+            WalkFor::Hits,
             |k, hit| {
                 out[k] = Some(hit);
                 LaneNext::Stop(hit.t)
@@ -514,6 +566,8 @@ impl<T: Voxel> KdTree<T> {
     /// `defers`: bit `s` when `on_hit` stops its lane at every hit on surface `s`
     /// ([`LaneNext::Stop`] at the hit), so a lane whose such hit's cell is certain may have
     /// its root found after the walk ([`Deferred`]; in cells holding that isovalue only).
+    /// `walk_for`: [`WalkFor::AnyHit`] hands such a lane to `on_hit` at its segment's start
+    /// instead, its root not found (whether the ray hits, not where).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(crate) fn walk_packet_in<C: CellIntersector, S: Stats>(
@@ -528,6 +582,7 @@ impl<T: Voxel> KdTree<T> {
         intersector: C,
         stats: &mut S,
         defers: u64,
+        walk_for: WalkFor,
         mut on_hit: impl FnMut(usize, CellHit) -> LaneNext,
     ) {
         let PacketStack {
@@ -620,7 +675,17 @@ impl<T: Voxel> KdTree<T> {
                 }
             }
         }
-        if deferred.lanes != 0 {
+        if deferred.lanes != 0 && walk_for == WalkFor::AnyHit {
+            for k in lane_indices(deferred.lanes) {
+                let (t_near, _) = deferred.segment[k];
+                let hit = CellHit {
+                    t: t_near,
+                    surface: deferred.iso[k].1,
+                    cell: deferred.cell[k],
+                };
+                let _ = on_hit(k, hit);
+            }
+        } else if deferred.lanes != 0 {
             let retrace = |k: usize, t: f32| {
                 self.first_hit(frame, voxels, &rays[k], t, t1[k], isos, intersector, stats)
             };

@@ -355,7 +355,7 @@ struct Scratch {
     shadow_t_max: Vec<f32>,
     /// Index into `shade` of each shadow ray.
     shadow_of: Vec<u32>,
-    shadow_hits: Vec<Option<Hit>>,
+    shadow_occluded: Vec<bool>,
 }
 
 /// A hit of the current round, waiting for its shadow rays before it is shaded.
@@ -877,18 +877,18 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         if SHADOWS && !sc.shadow_rays.is_empty() {
             let m = sc.shadow_rays.len();
             if settings.packets {
-                sc.shadow_hits.clear();
-                sc.shadow_hits.resize(m, None);
-                scene.first_hit_packet_prepared(
+                sc.shadow_occluded.clear();
+                sc.shadow_occluded.resize(m, false);
+                scene.occluded_packet_prepared(
                     &sc.shadow_rays,
                     &sc.shadow_t_min,
                     &sc.shadow_t_max,
                     &ctx.isos,
-                    &mut sc.shadow_hits,
+                    &mut sc.shadow_occluded,
                     &mut tally.stats,
                 );
-                for (h, &owner) in sc.shadow_hits.iter().zip(&sc.shadow_of) {
-                    if h.is_some() {
+                for (&occluded, &owner) in sc.shadow_occluded.iter().zip(&sc.shadow_of) {
+                    if occluded {
                         sc.shade[owner as usize].lit = 0.0;
                     }
                 }

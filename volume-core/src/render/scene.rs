@@ -316,6 +316,40 @@ pub trait IsoScene: Sync {
         }
     }
 
+    /// Whether each ray has a hit in `[t_min[i], t_max[i]]` (shadow rays), written to
+    /// `out[i]`: where is not asked, so no root need be refined and no normal made.
+    ///
+    /// The default takes [`IsoScene::first_hit_packet_prepared`]'s hits; the kd-tree
+    /// packets override it.
+    fn occluded_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &Self::Isovalues,
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        // As many rays at once as a renderer tile has (16×16 BVH frusta keep them).
+        const CHUNK: usize = 256;
+        let mut hits = [None; CHUNK];
+        for (c, chunk) in rays.chunks(CHUNK).enumerate() {
+            let base = c * CHUNK;
+            let m = chunk.len();
+            self.first_hit_packet_prepared(
+                chunk,
+                &t_min[base..base + m],
+                &t_max[base..base + m],
+                isos,
+                &mut hits[..m],
+                stats,
+            );
+            for (o, h) in out[base..base + m].iter_mut().zip(&hits[..m]) {
+                *o = h.is_some();
+            }
+        }
+    }
+
     /// For each ray, its layers as the renderer peels them: the first hit in
     /// `[t_min[i], t_max[i]]`, then the first from [`Peel::next_t`] of the previous one on,
     /// until a hit ends the ray ([`Peel::ends_ray`]), `peel.max_hits` are found or none is
@@ -449,6 +483,19 @@ impl<S: IsoScene> IsoScene for WholeBounds<'_, S> {
     ) {
         self.0
             .first_hit_packet_prepared(rays, t_min, t_max, isos, out, stats);
+    }
+
+    fn occluded_packet_prepared<St: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &S::Isovalues,
+        out: &mut [bool],
+        stats: &mut St,
+    ) {
+        self.0
+            .occluded_packet_prepared(rays, t_min, t_max, isos, out, stats);
     }
 
     fn peeled_hits_packet_prepared<St: Stats>(
