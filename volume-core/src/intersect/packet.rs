@@ -193,8 +193,10 @@ pub fn intersect_prepared_cell_x8<T: Voxel, C: CellIntersector, S: Stats>(
     let (tn, tf) = (t0.to_array(), t1.to_array());
     // Deferring needs the cell's only isovalue: with more, a lane's hit is the nearest of
     // theirs.
+    // (A set of one: the cell was loaded because its range holds it.)
     let defer_iso = if may_defer & mask != 0 {
-        isos.only_in(pc.min, pc.max)
+        isos.single()
+            .or_else(|| isos.only_in(pc.min, pc.max))
             .filter(|&(_, surface)| surface < 64 && defers >> surface & 1 == 1)
     } else {
         None
