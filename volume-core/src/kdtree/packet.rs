@@ -480,7 +480,7 @@ impl<T: Voxel> KdTree<T> {
 
     /// Whether each of up to [`PACKET_WIDTH`] [`packet_compatible`] rays has a hit in
     /// `[t0[i], t1[i]]` (shadow rays), written to `out[i]`: a lane ends at its first hit
-    /// found, and a certain crossing is not refined at all ([`Deferred`]'s lanes hit).
+    /// found, and a crossing the `f32` filter certifies is a hit without its root refined.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub fn any_hit_packet_in<C: CellIntersector, S: Stats>(
