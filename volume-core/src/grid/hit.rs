@@ -139,6 +139,34 @@ impl LocalPacket {
     }
 }
 
+impl LocalPacket {
+    /// Hands the rays, in order, to `packet(state, from, to)` where they travel as one packet
+    /// (all of them, or a group of 8 sharing direction signs) and to `alone(state, i)` one
+    /// by one otherwise (rays on both sides of an axis-parallel direction).
+    #[inline(always)]
+    pub(crate) fn for_each_group<X>(
+        &self,
+        state: &mut X,
+        mut packet: impl FnMut(&mut X, usize, usize),
+        mut alone: impl FnMut(&mut X, usize),
+    ) {
+        if self.one_packet {
+            packet(state, 0, self.n);
+            return;
+        }
+        for from in (0..self.n).step_by(8) {
+            let to = (from + 8).min(self.n);
+            if packet_compatible(&self.local[from..to]) {
+                packet(state, from, to);
+            } else {
+                for i in from..to {
+                    alone(state, i);
+                }
+            }
+        }
+    }
+}
+
 /// [`crate::render::IsoScene::first_hit_packet_prepared`] of `scene` for up to
 /// [`PACKET_WIDTH`] rays with a static intersector: the rays in traversal units and clipped,
 /// then one packet ([`CellTrace::cell_hits_packet`]) when their directions allow it, else
@@ -161,44 +189,27 @@ pub fn first_hits_packet_with<T: Voxel, G: CellTrace<T>, C: CellIntersector, S: 
         stats.ray();
     }
     let mut cell_hits = [None; PACKET_WIDTH];
-    if lp.one_packet {
-        scene.cell_hits_packet(
-            &local[..n],
-            &t0[..n],
-            &t1[..n],
-            isos,
-            intersector,
-            stats,
-            &mut cell_hits[..n],
-        );
-    } else {
-        // Groups of 8: a packet, or one by one (rays on both sides of an axis-parallel
-        // direction).
-        for start in (0..n).step_by(8) {
-            let end = (start + 8).min(n);
-            let (l, a, b) = (&local[start..end], &t0[start..end], &t1[start..end]);
-            if packet_compatible(l) {
-                scene.cell_hits_packet(
-                    l,
-                    a,
-                    b,
-                    isos,
-                    intersector,
-                    stats,
-                    &mut cell_hits[start..end],
-                );
-                continue;
+    lp.for_each_group(
+        &mut (&mut cell_hits, stats),
+        |(cell_hits, stats), from, to| {
+            scene.cell_hits_packet(
+                &local[from..to],
+                &t0[from..to],
+                &t1[from..to],
+                isos,
+                intersector,
+                *stats,
+                &mut cell_hits[from..to],
+            );
+        },
+        |(cell_hits, stats), i| {
+            if t0[i] <= t1[i] {
+                // Clipping again inside `cell_hit` changes nothing (a slab test of the same
+                // box).
+                cell_hits[i] = scene.cell_hit(&local[i], t0[i], t1[i], isos, intersector, *stats);
             }
-            for i in start..end {
-                if t0[i] <= t1[i] {
-                    // Clipping again inside `cell_hit` changes nothing (a slab test of the
-                    // same box).
-                    cell_hits[i] =
-                        scene.cell_hit(&local[i], t0[i], t1[i], isos, intersector, stats);
-                }
-            }
-        }
-    }
+        },
+    );
     // Runs of hit lanes in one block (the whole packet in core) get their hits together.
     let normals = G::normals(isos);
     let mut lanes = [0usize; PACKET_WIDTH];

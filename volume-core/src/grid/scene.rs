@@ -24,9 +24,7 @@ use super::sample::{GridField, GridQuantity, gradient_magnitude_range};
 use crate::error::VolumeError;
 use crate::intersect::{CellHit, CellIntersector, Intersector, IsoSet, LocalRay, TraversalFrame};
 use crate::kdtree::packet::{WalkFor, ray_go_on};
-use crate::kdtree::{
-    KdTree, KdTreeConfig, LIVE_COVER_NODES, PACKET_WIDTH, packet_compatible, with_packet_stack,
-};
+use crate::kdtree::{KdTree, KdTreeConfig, LIVE_COVER_NODES, PACKET_WIDTH, with_packet_stack};
 use crate::math::{Aabb, Ray};
 use crate::render::{
     Hit, HitField, IsoScene, MAX_PEELED, Normals, Peel, PeeledHits, SceneVisitor, Stats,
@@ -426,39 +424,31 @@ impl<T: Voxel> GridScene<T> {
             stats.ray();
         }
         let voxels = self.voxels.as_slice();
-        let walk = |from: usize, to: usize, out: &mut [bool], stats: &mut S| {
-            with_packet_stack(|stack| {
-                self.tree.any_hit_packet_in(
-                    stack,
-                    &self.frame,
-                    voxels,
-                    &local[from..to],
-                    &t0[from..to],
-                    &t1[from..to],
-                    isos,
-                    intersector,
-                    stats,
-                    &mut out[from..to],
-                );
-            });
-        };
-        if lp.one_packet {
-            walk(0, n, out, stats);
-            return;
-        }
-        for from in (0..n).step_by(8) {
-            let to = (from + 8).min(n);
-            if packet_compatible(&local[from..to]) {
-                walk(from, to, out, stats);
-                continue;
-            }
-            for i in from..to {
+        lp.for_each_group(
+            &mut (out, stats),
+            |(out, stats), from, to| {
+                with_packet_stack(|stack| {
+                    self.tree.any_hit_packet_in(
+                        stack,
+                        &self.frame,
+                        voxels,
+                        &local[from..to],
+                        &t0[from..to],
+                        &t1[from..to],
+                        isos,
+                        intersector,
+                        *stats,
+                        &mut out[from..to],
+                    );
+                });
+            },
+            |(out, stats), i| {
                 out[i] = t0[i] <= t1[i]
                     && self
-                        .cell_hit_with(&local[i], t0[i], t1[i], isos, intersector, stats)
+                        .cell_hit_with(&local[i], t0[i], t1[i], isos, intersector, *stats)
                         .is_some();
-            }
-        }
+            },
+        );
     }
 
     /// [`IsoScene::peeled_hits_packet_prepared`] for up to [`PACKET_WIDTH`] rays with a
@@ -483,45 +473,37 @@ impl<T: Voxel> GridScene<T> {
         }
         let mut layers = LaneLayers::new(peel);
         let voxels = self.voxels.as_slice();
-        let walk = |from: usize, to: usize, layers: &mut LaneLayers, stats: &mut S| {
-            with_packet_stack(|stack| {
-                self.tree.walk_packet_in(
-                    stack,
-                    &self.frame,
-                    voxels,
-                    &local[from..to],
-                    &t0[from..to],
-                    &t1[from..to],
-                    isos,
-                    intersector,
-                    stats,
-                    // Hits on opaque surfaces end their lane (`LaneLayers::add`).
-                    peel.opaque,
-                    WalkFor::Hits,
-                    |k, hit| layers.add(from + k, hit),
-                );
-            });
-        };
-        if lp.one_packet {
-            walk(0, n, &mut layers, stats);
-        } else {
-            for from in (0..n).step_by(8) {
-                let to = (from + 8).min(n);
-                if packet_compatible(&local[from..to]) {
-                    walk(from, to, &mut layers, stats);
-                    continue;
-                }
-                // One by one: the ray again from past each transparent layer.
-                for i in from..to {
-                    ray_go_on(
-                        t0[i],
-                        t1[i],
-                        |t| self.cell_hit_with(&local[i], t, t1[i], isos, intersector, stats),
-                        |h| layers.add(i, h),
+        lp.for_each_group(
+            &mut (&mut layers, stats),
+            |(layers, stats), from, to| {
+                with_packet_stack(|stack| {
+                    self.tree.walk_packet_in(
+                        stack,
+                        &self.frame,
+                        voxels,
+                        &local[from..to],
+                        &t0[from..to],
+                        &t1[from..to],
+                        isos,
+                        intersector,
+                        *stats,
+                        // Hits on opaque surfaces end their lane (`LaneLayers::add`).
+                        peel.opaque,
+                        WalkFor::Hits,
+                        |k, hit| layers.add(from + k, hit),
                     );
-                }
-            }
-        }
+                });
+            },
+            // One by one: the ray again from past each transparent layer.
+            |(layers, stats), i| {
+                ray_go_on(
+                    t0[i],
+                    t1[i],
+                    |t| self.cell_hit_with(&local[i], t, t1[i], isos, intersector, *stats),
+                    |h| layers.add(i, h),
+                );
+            },
+        );
         // Every lane's layers, in lane order, get their hits together.
         let mut lanes = [0usize; PACKET_WIDTH * MAX_PEELED];
         let mut hits = [CellHit::NONE; PACKET_WIDTH * MAX_PEELED];
