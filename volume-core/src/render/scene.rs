@@ -330,24 +330,9 @@ pub trait IsoScene: Sync {
         out: &mut [bool],
         stats: &mut S,
     ) {
-        // As many rays at once as a renderer tile has (16×16 BVH frusta keep them).
-        const CHUNK: usize = 256;
-        let mut hits = [None; CHUNK];
-        for (c, chunk) in rays.chunks(CHUNK).enumerate() {
-            let base = c * CHUNK;
-            let m = chunk.len();
-            self.first_hit_packet_prepared(
-                chunk,
-                &t_min[base..base + m],
-                &t_max[base..base + m],
-                isos,
-                &mut hits[..m],
-                stats,
-            );
-            for (o, h) in out[base..base + m].iter_mut().zip(&hits[..m]) {
-                *o = h.is_some();
-            }
-        }
+        first_hits_in_chunks(self, rays, t_min, t_max, isos, stats, |i, h| {
+            out[i] = h.is_some();
+        });
     }
 
     /// For each ray, its layers as the renderer peels them: the first hit in
@@ -370,25 +355,9 @@ pub trait IsoScene: Sync {
         out: &mut [PeeledHits],
         stats: &mut S,
     ) {
-        // As many rays at once as a renderer tile has, so structures with large packets
-        // (16×16 BVH frusta) keep them.
-        const CHUNK: usize = 256;
-        let mut first = [None; CHUNK];
-        for (c, chunk) in rays.chunks(CHUNK).enumerate() {
-            let base = c * CHUNK;
-            let m = chunk.len();
-            self.first_hit_packet_prepared(
-                chunk,
-                &t_min[base..base + m],
-                &t_max[base..base + m],
-                isos,
-                &mut first[..m],
-                stats,
-            );
-            for (o, &h) in out[base..base + m].iter_mut().zip(&first[..m]) {
-                o.set_first(h, peel);
-            }
-        }
+        first_hits_in_chunks(self, rays, t_min, t_max, isos, stats, |i, h| {
+            out[i].set_first(h, peel);
+        });
     }
 
     /// [`IsoScene::first_hit_prepared`] of `isovalues` prepared for this ray only.
@@ -427,6 +396,37 @@ pub trait IsoScene: Sync {
     ) {
         let isos = self.prepare(isovalues);
         self.first_hit_packet_prepared(rays, t_min, t_max, &isos, out, stats);
+    }
+}
+
+/// `scene`'s first hits of `rays` ([`IsoScene::first_hit_packet_prepared`]), handed to
+/// `each(i, hit)`, in chunks of as many rays as a renderer tile has, so structures with
+/// large packets (16×16 BVH frusta) keep them.
+fn first_hits_in_chunks<Sc: IsoScene + ?Sized, S: Stats>(
+    scene: &Sc,
+    rays: &[Ray],
+    t_min: &[f32],
+    t_max: &[f32],
+    isos: &Sc::Isovalues,
+    stats: &mut S,
+    mut each: impl FnMut(usize, Option<Hit>),
+) {
+    const CHUNK: usize = 256;
+    let mut hits = [None; CHUNK];
+    for (c, chunk) in rays.chunks(CHUNK).enumerate() {
+        let base = c * CHUNK;
+        let m = chunk.len();
+        scene.first_hit_packet_prepared(
+            chunk,
+            &t_min[base..base + m],
+            &t_max[base..base + m],
+            isos,
+            &mut hits[..m],
+            stats,
+        );
+        for (j, &h) in hits[..m].iter().enumerate() {
+            each(base + j, h);
+        }
     }
 }
 
