@@ -137,9 +137,7 @@ impl LocalPacket {
             one_packet,
         }
     }
-}
 
-impl LocalPacket {
     /// Hands the rays, in order, to `packet(state, from, to)` where they travel as one packet
     /// (all of them, or a group of 8 sharing direction signs) and to `alone(state, i)` one
     /// by one otherwise (rays on both sides of an axis-parallel direction).
