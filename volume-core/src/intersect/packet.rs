@@ -32,6 +32,18 @@ pub struct RaysX8 {
     pub t_hi: f32x8,
 }
 
+impl RaysX8 {
+    /// Zero lanes, to be overwritten.
+    pub(crate) const EMPTY: Self = Self {
+        origin: [f32x8::ZERO; 3],
+        dir: [f32x8::ZERO; 3],
+        inv_dir: [f32x8::ZERO; 3],
+        dir_pos: [false; 3],
+        t_lo: f32x8::ZERO,
+        t_hi: f32x8::ZERO,
+    };
+}
+
 #[cfg(test)]
 impl RaysX8 {
     /// Eight rays as lanes (tests), with direction signs from the first ray (the rays must

@@ -863,7 +863,9 @@ thread_local! {
     /// The traversal stacks of this thread's rays and packets (one entry per level at most),
     /// made once per thread: zeroing 64 entries per ray showed in profiles.
     static STACK: RefCell<Vec<Entry<f32>>> = const { RefCell::new(Vec::new()) };
-    static PACKET_STACK: RefCell<Vec<Entry<Lanes>>> = const { RefCell::new(Vec::new()) };
+    /// Packets also keep their rays' lanes here, written in place per packet.
+    static PACKET_STACK: RefCell<(Vec<Entry<Lanes>>, PacketRays)> =
+        const { RefCell::new((Vec::new(), PacketRays::EMPTY)) };
 }
 
 /// The children of an inner node as both traversals read them.
@@ -1208,6 +1210,7 @@ impl<T: Voxel> OocScene<T> {
         intersector: C,
         stats: &mut S,
         stack: &mut [Entry<Lanes>],
+        p: &mut PacketRays,
         out: &mut [Option<(CellHit, CellBlock<'s, T>)>],
     ) {
         let meta = &self.shared.meta;
@@ -1222,7 +1225,7 @@ impl<T: Voxel> OocScene<T> {
         };
         let n = rays.len().min(PACKET_WIDTH);
         debug_assert!(packet_compatible(&rays[..n]));
-        let mut p = PacketRays::new(&rays[..n], &t0[..n], &t1[..n]);
+        p.set(&rays[..n], &t0[..n], &t1[..n]);
         let (mut tn, mut tf) = (p.t_near, p.t_far);
         let (mut tl, mut ti) = (0usize, 0u64);
         let mut end = layout.level(0).end;
@@ -1262,7 +1265,7 @@ impl<T: Voxel> OocScene<T> {
                         block.voxels,
                         block.dims,
                         cell,
-                        &mut p,
+                        p,
                         mask_bits(&active),
                         isos,
                         intersector,
@@ -1391,7 +1394,7 @@ impl<T: Voxel> CellTrace<T> for OocScene<T> {
             return;
         }
         let depth = self.shared.meta.layout.depth();
-        PACKET_STACK.with_borrow_mut(|stack| {
+        PACKET_STACK.with_borrow_mut(|(stack, p)| {
             if stack.len() <= depth {
                 stack.resize(depth + 1, Entry::default());
             }
@@ -1405,6 +1408,7 @@ impl<T: Voxel> CellTrace<T> for OocScene<T> {
                 intersector,
                 stats,
                 stack,
+                p,
                 out,
             );
         });
