@@ -1,8 +1,8 @@
-//! Packet traversal: 16 coherent rays (two `f32x8` halves) walk the kd-tree together
-//! (thesis seed 004 §7.2.1, after Wald's coherent packets; the thesis used 4). Node min/max
-//! are fetched and culled once per packet, and the split distances of all rays are computed
-//! lane-wise (the `wide` crate: AVX when enabled at compile time, SSE pairs otherwise, no
-//! `unsafe`).
+//! Packet traversal: 16 coherent rays walk the kd-tree together (thesis seed 004 §7.2.1,
+//! after Wald's coherent packets; the thesis used 4). Node min/max are fetched and culled
+//! once per packet, and the split distances of all rays are computed lane-wise in one
+//! `f32x16` (the `wide` crate: one AVX-512 register when enabled at compile time, AVX or SSE
+//! parts otherwise, no `unsafe`); the leaves test the rays in two `f32x8` halves.
 //!
 //! A packet descends to one child when every active ray does, else to both; each ray keeps
 //! its own `[t_near, t_far]` lane, computed with exactly the single-ray formulas, and leaves
@@ -22,7 +22,7 @@
 //! tested). A lane that goes on past a transparent layer tests its cell again from there,
 //! unless the slow path certified that layer the cell's only crossing.
 
-use wide::f32x8;
+use wide::{f32x8, f32x16};
 
 use super::step::{Step, Visit};
 use super::{Entry, INLINE_STACK, KdTree};
@@ -42,50 +42,41 @@ pub(crate) const HALVES: usize = 2;
 /// Rays per packet.
 pub const PACKET_WIDTH: usize = 8 * HALVES;
 
-/// Lanes of a packet: `HALVES` vectors of 8.
-pub(crate) type Lanes = [f32x8; HALVES];
+/// Lanes of a packet, one `f32x16` (a single AVX-512 register when the CPU has it, two
+/// AVX halves otherwise): the node step's split distances, interval clips and tests are one
+/// instruction each instead of one per half.
+pub(crate) type Lanes = f32x16;
+
+const _: () = assert!(PACKET_WIDTH == 16, "`Lanes` holds 16 rays");
 
 #[inline(always)]
 pub(crate) fn lanes(x: &[f32; PACKET_WIDTH]) -> Lanes {
-    let mut v = [f32x8::ZERO; HALVES];
-    for (h, c) in x.chunks_exact(8).enumerate() {
-        v[h] = f32x8::new(c.try_into().expect("8 lanes"));
-    }
-    v
+    f32x16::new(*x)
 }
 
 #[inline(always)]
 pub(crate) fn splat(x: f32) -> Lanes {
-    [f32x8::splat(x); HALVES]
+    f32x16::splat(x)
 }
 
-/// Lane masks of `f` (all bits set where true), half by half.
+/// Lane masks of `f` (all bits set where true).
 #[inline(always)]
-pub(crate) fn masks(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
-    map2(a, b, f)
+pub(crate) fn masks(a: &Lanes, b: &Lanes, f: impl Fn(Lanes, Lanes) -> Lanes) -> Lanes {
+    f(*a, *b)
 }
 
-/// Whether any lane of the masks `m` is set: the halves or-ed, one move-mask. The node step
-/// decides with this, not with [`mask_bits`]: combining the halves' move-masks into one
-/// integer (packs, shuffle, byte move-mask) lengthened the chain that every branch of a
-/// node step waits for, and its line was the hottest of the traversal in `perf`.
+/// Whether any lane of the masks `m` is set: one move-mask. The node step decides with
+/// this, not with [`mask_bits`]: with two halves, combining their move-masks into one
+/// integer lengthened the chain that every branch of a node step waits for.
 #[inline(always)]
 pub(crate) fn any_lane(m: &Lanes) -> bool {
-    let mut o = m[0];
-    for &x in &m[1..] {
-        o |= x;
-    }
-    o.any()
+    m.any()
 }
 
-/// Bit `8h + i` set where lane `i` of half `h` of the masks `m` is set.
+/// Bit `i` set where lane `i` of the masks `m` is set.
 #[inline(always)]
 pub(crate) fn mask_bits(m: &Lanes) -> u32 {
-    let mut b = 0;
-    for (h, x) in m.iter().enumerate() {
-        b |= x.to_bitmask() << (8 * h);
-    }
-    b
+    m.to_bitmask()
 }
 
 /// Which children of a node the packet enters, for the `active` rays (lane masks) with
@@ -96,23 +87,21 @@ pub(crate) fn mask_bits(m: &Lanes) -> u32 {
 pub(crate) fn packet_visit(active: &Lanes, ts: &Lanes, tn: &Lanes, tf: &Lanes) -> Visit<Lanes> {
     // "Every active ray is beyond" is "no active ray is not beyond" (`!` keeps NaN lanes
     // on the not-beyond side, as the bit test did).
-    let not_beyond = map2(ts, tf, |s, f| !s.simd_gt(f));
-    if !any_lane(&map2(active, &not_beyond, |a, n| a & n)) {
+    if !any_lane(&(*active & !ts.simd_gt(*tf))) {
         return Visit::Near;
     }
-    let not_before = map2(ts, tn, |s, n| !s.simd_lt(n));
-    if !any_lane(&map2(active, &not_before, |a, n| a & n)) {
+    if !any_lane(&(*active & !ts.simd_lt(*tn))) {
         return Visit::Far;
     }
     Visit::Both {
-        near_t_far: map2(tf, ts, f32x8::min),
-        far_t_near: map2(tn, ts, f32x8::max),
+        near_t_far: tf.min(*ts),
+        far_t_near: tn.max(*ts),
     }
 }
 
 #[inline(always)]
-pub(crate) fn map2(a: &Lanes, b: &Lanes, f: impl Fn(f32x8, f32x8) -> f32x8) -> Lanes {
-    std::array::from_fn(|h| f(a[h], b[h]))
+pub(crate) fn map2(a: &Lanes, b: &Lanes, f: impl Fn(Lanes, Lanes) -> Lanes) -> Lanes {
+    f(*a, *b)
 }
 
 type PacketEntry = Entry<Lanes>;
@@ -176,12 +165,12 @@ pub(crate) struct PacketRays {
 impl PacketRays {
     /// Zero lanes, to be overwritten by [`PacketRays::set`].
     pub(crate) const EMPTY: Self = Self {
-        org: [[f32x8::ZERO; HALVES]; 3],
-        inv: [[f32x8::ZERO; HALVES]; 3],
+        org: [f32x16::ZERO; 3],
+        inv: [f32x16::ZERO; 3],
         dir_pos: [false; 3],
         leaf: [RaysX8::EMPTY; HALVES],
-        t_near: [f32x8::ZERO; HALVES],
-        t_far: [f32x8::ZERO; HALVES],
+        t_near: f32x16::ZERO,
+        t_far: f32x16::ZERO,
     };
 
     /// Up to [`PACKET_WIDTH`] compatible rays with clipped intervals `[t0[i], t1[i]]`,
@@ -215,15 +204,18 @@ impl PacketRays {
         }
         self.t_near = lanes(&soa[9]);
         self.t_far = lanes(&soa[10]);
+        let eight = |x: &[f32; PACKET_WIDTH], h: usize| {
+            f32x8::new(x[8 * h..8 * h + 8].try_into().expect("8 lanes"))
+        };
         for (h, leaf) in self.leaf.iter_mut().enumerate() {
             for a in 0..3 {
-                leaf.origin[a] = self.org[a][h];
-                leaf.inv_dir[a] = self.inv[a][h];
-                leaf.dir[a] = lanes(&soa[6 + a])[h];
+                leaf.origin[a] = eight(&soa[a], h);
+                leaf.inv_dir[a] = eight(&soa[3 + a], h);
+                leaf.dir[a] = eight(&soa[6 + a], h);
             }
             leaf.dir_pos = dir_pos;
-            leaf.t_lo = self.t_near[h];
-            leaf.t_hi = self.t_far[h];
+            leaf.t_lo = eight(&soa[9], h);
+            leaf.t_hi = eight(&soa[10], h);
         }
     }
 }
@@ -634,7 +626,7 @@ impl<T: Voxel> KdTree<T> {
         let mut level = 0usize;
         'outer: loop {
             loop {
-                let active = masks(&tn, &tf, f32x8::simd_le);
+                let active = masks(&tn, &tf, f32x16::simd_le);
                 if !any_lane(&active) {
                     break;
                 }
@@ -661,7 +653,7 @@ impl<T: Voxel> KdTree<T> {
                 level += 1;
                 let a = ch.axis;
                 let ts = map2(&p.org[a], &p.inv[a], |o, v| {
-                    (f32x8::splat(ch.split) - o) * v
+                    (f32x16::splat(ch.split) - o) * v
                 });
                 let step = Step {
                     near_is_left: p.dir_pos[a],
@@ -678,8 +670,8 @@ impl<T: Voxel> KdTree<T> {
                 }
                 sp -= 1;
                 let e = stack[sp];
-                let e_tf = map2(&e.t_far, &best_v, f32x8::min);
-                if any_lane(&masks(&e.t_near, &e_tf, f32x8::simd_le)) {
+                let e_tf = map2(&e.t_far, &best_v, f32x16::min);
+                if any_lane(&masks(&e.t_near, &e_tf, f32x16::simd_le)) {
                     node = e.node;
                     level = e.level as usize;
                     tn = e.t_near;

@@ -38,7 +38,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::OocError;
-use wide::f32x8;
+use wide::f32x16;
 
 use super::layout::linear_index;
 use super::quantize::CodeQuery;
@@ -1237,7 +1237,7 @@ impl<T: Voxel> OocScene<T> {
         let mut best_v = splat(f32::INFINITY);
         'outer: loop {
             loop {
-                let active = masks(&tn, &tf, f32x8::simd_le);
+                let active = masks(&tn, &tf, f32x16::simd_le);
                 if !any_lane(&active) {
                     break;
                 }
@@ -1290,7 +1290,7 @@ impl<T: Voxel> OocScene<T> {
                 let (a, u, left) = (ns.axis, ns.unit, ns.left);
                 level += 1;
                 let ts = map2(&p.org[a], &p.inv[a], |o, v| {
-                    (f32x8::splat(ns.split) - o) * v
+                    (f32x16::splat(ns.split) - o) * v
                 });
                 // The packet enters one child when every active ray does (as in-core).
                 let step = Step {
@@ -1322,8 +1322,8 @@ impl<T: Voxel> OocScene<T> {
                 }
                 sp -= 1;
                 let e = stack[sp];
-                let e_tf = map2(&e.t_far, &best_v, f32x8::min);
-                if any_lane(&masks(&e.t_near, &e_tf, f32x8::simd_le)) {
+                let e_tf = map2(&e.t_far, &best_v, f32x16::min);
+                if any_lane(&masks(&e.t_near, &e_tf, f32x16::simd_le)) {
                     node = e.node;
                     level = e.level as usize;
                     h = e.h as usize;
