@@ -59,12 +59,6 @@ pub(crate) fn splat(x: f32) -> Lanes {
     f32x16::splat(x)
 }
 
-/// Lane masks of `f` (all bits set where true).
-#[inline(always)]
-pub(crate) fn masks(a: &Lanes, b: &Lanes, f: impl Fn(Lanes, Lanes) -> Lanes) -> Lanes {
-    f(*a, *b)
-}
-
 /// Whether any lane of the masks `m` is set: one move-mask. The node step decides with
 /// this, not with [`mask_bits`]: with two halves, combining their move-masks into one
 /// integer lengthened the chain that every branch of a node step waits for.
@@ -97,11 +91,6 @@ pub(crate) fn packet_visit(active: &Lanes, ts: &Lanes, tn: &Lanes, tf: &Lanes) -
         near_t_far: tf.min(*ts),
         far_t_near: tn.max(*ts),
     }
-}
-
-#[inline(always)]
-pub(crate) fn map2(a: &Lanes, b: &Lanes, f: impl Fn(Lanes, Lanes) -> Lanes) -> Lanes {
-    f(*a, *b)
 }
 
 type PacketEntry = Entry<Lanes>;
@@ -626,7 +615,7 @@ impl<T: Voxel> KdTree<T> {
         let mut level = 0usize;
         'outer: loop {
             loop {
-                let active = masks(&tn, &tf, f32x16::simd_le);
+                let active = tn.simd_le(tf);
                 if !any_lane(&active) {
                     break;
                 }
@@ -652,9 +641,7 @@ impl<T: Voxel> KdTree<T> {
                 let ch = self.children(level, node, isos);
                 level += 1;
                 let a = ch.axis;
-                let ts = map2(&p.org[a], &p.inv[a], |o, v| {
-                    (f32x16::splat(ch.split) - o) * v
-                });
+                let ts = (f32x16::splat(ch.split) - p.org[a]) * p.inv[a];
                 let step = Step {
                     near_is_left: p.dir_pos[a],
                     visit: packet_visit(&active, &ts, &tn, &tf),
@@ -670,8 +657,8 @@ impl<T: Voxel> KdTree<T> {
                 }
                 sp -= 1;
                 let e = stack[sp];
-                let e_tf = map2(&e.t_far, &best_v, f32x16::min);
-                if any_lane(&masks(&e.t_near, &e_tf, f32x16::simd_le)) {
+                let e_tf = e.t_far.min(best_v);
+                if any_lane(&e.t_near.simd_le(e_tf)) {
                     node = e.node;
                     level = e.level as usize;
                     tn = e.t_near;

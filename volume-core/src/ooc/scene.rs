@@ -49,7 +49,7 @@ use crate::intersect::{
     intersect_cell,
 };
 use crate::kdtree::packet::{
-    LaneNext, Lanes, PacketRays, any_lane, map2, mask_bits, masks, packet_leaf, packet_visit, splat,
+    LaneNext, Lanes, PacketRays, any_lane, mask_bits, packet_leaf, packet_visit, splat,
 };
 use crate::kdtree::step::{Step, ray_step, take_step};
 use crate::kdtree::{PACKET_WIDTH, packet_compatible};
@@ -1237,7 +1237,7 @@ impl<T: Voxel> OocScene<T> {
         let mut best_v = splat(f32::INFINITY);
         'outer: loop {
             loop {
-                let active = masks(&tn, &tf, f32x16::simd_le);
+                let active = tn.simd_le(tf);
                 if !any_lane(&active) {
                     break;
                 }
@@ -1289,9 +1289,7 @@ impl<T: Voxel> OocScene<T> {
                 let ns = self.split_of(level, node);
                 let (a, u, left) = (ns.axis, ns.unit, ns.left);
                 level += 1;
-                let ts = map2(&p.org[a], &p.inv[a], |o, v| {
-                    (f32x16::splat(ns.split) - o) * v
-                });
+                let ts = (f32x16::splat(ns.split) - p.org[a]) * p.inv[a];
                 // The packet enters one child when every active ray does (as in-core).
                 let step = Step {
                     near_is_left: p.dir_pos[a],
@@ -1322,8 +1320,8 @@ impl<T: Voxel> OocScene<T> {
                 }
                 sp -= 1;
                 let e = stack[sp];
-                let e_tf = map2(&e.t_far, &best_v, f32x16::min);
-                if any_lane(&masks(&e.t_near, &e_tf, f32x16::simd_le)) {
+                let e_tf = e.t_far.min(best_v);
+                if any_lane(&e.t_near.simd_le(e_tf)) {
                     node = e.node;
                     level = e.level as usize;
                     h = e.h as usize;
