@@ -225,7 +225,16 @@ struct PtrNode {
     children: Vec<PtrNode>,
 }
 
-fn build_ptr(vox: &[f32], dims: [usize; 3], lo: [usize; 3], ext: [usize; 3]) -> PtrNode {
+/// The pointer tree over the cells from `lo` (`ext` cells per side), splitting `axes[level]`
+/// at each level.
+fn build_ptr(
+    vox: &[f32],
+    dims: [usize; 3],
+    lo: [usize; 3],
+    ext: [usize; 3],
+    axes: &[usize],
+    level: usize,
+) -> PtrNode {
     let cells = dims.map(|d| d - 1);
     let hi = [0, 1, 2].map(|a| (lo[a] + ext[a]).min(cells[a]));
     if ext == [1, 1, 1] {
@@ -235,12 +244,7 @@ fn build_ptr(vox: &[f32], dims: [usize; 3], lo: [usize; 3], ext: [usize; 3]) -> 
             children: vec![],
         };
     }
-    let mut axis = 0;
-    for a in 1..3 {
-        if ext[a] > ext[axis] {
-            axis = a;
-        }
-    }
+    let axis = axes[level];
     let mut half = ext;
     half[axis] /= 2;
     let mut children = vec![];
@@ -248,7 +252,7 @@ fn build_ptr(vox: &[f32], dims: [usize; 3], lo: [usize; 3], ext: [usize; 3]) -> 
         let mut clo = lo;
         clo[axis] += side * half[axis];
         if clo[axis] < cells[axis] {
-            children.push(build_ptr(vox, dims, clo, half));
+            children.push(build_ptr(vox, dims, clo, half, axes, level + 1));
         }
     }
     let _ = hi;
@@ -284,7 +288,13 @@ fn check_ptr(
 #[test]
 fn slim_layout_equals_naive_pointer_tree() {
     let mut rng = Rng::new(7);
-    for dims in [[2, 2, 2], [3, 5, 2], [9, 4, 6], [17, 3, 10], [6, 6, 6]] {
+    // Unit cells, then cells 6× longer along z than along x (a CT's slices): each level
+    // splits the axis along which its nodes are longest in world space.
+    let cases = [[2, 2, 2], [3, 5, 2], [9, 4, 6], [17, 3, 10], [6, 6, 6]]
+        .map(|d| (d, [1.0; 3]))
+        .into_iter()
+        .chain([[33, 20, 6], [9, 17, 4], [5, 5, 9]].map(|d| (d, [0.5, 0.6, 3.0])));
+    for (dims, spacing) in cases {
         let n: usize = dims.iter().product();
         let vox: Vec<f32> = (0..n)
             .map(|_| {
@@ -295,26 +305,29 @@ fn slim_layout_equals_naive_pointer_tree() {
                 }
             })
             .collect();
-        let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+        let grid = Grid::uniform(dims, [0.0; 3], spacing).unwrap();
         let frame = volume_core::intersect::TraversalFrame::new(&grid);
         let tree = KdTree::build(&vox, dims, &frame, KdTreeConfig { unstored_levels: 0 });
         let cells = dims.map(|d| d - 1);
         let pad = cells.map(usize::next_power_of_two);
-        let root = build_ptr(&vox, dims, [0; 3], pad);
-        // Axis per level: replay the extent halving.
+        // Axis per level: replay the halving of the longest world extent (first on ties)
+        // among the axes with more than one cell.
         let mut axes = vec![];
         let mut e = pad;
         while e != [1, 1, 1] {
-            let mut a = 0;
-            for b in 1..3 {
-                if e[b] > e[a] {
-                    a = b;
-                }
-            }
+            let len = |b: usize| e[b] as f64 * spacing[b];
+            let a = (0..3)
+                .filter(|&b| e[b] > 1)
+                .fold(None, |best: Option<usize>, b| match best {
+                    Some(x) if len(x) >= len(b) => Some(x),
+                    _ => Some(b),
+                })
+                .unwrap();
             axes.push(a);
             e[a] /= 2;
         }
         assert_eq!(axes.len(), tree.depth());
+        let root = build_ptr(&vox, dims, [0; 3], pad, &axes, 0);
         check_ptr(&tree, &root, 0, [0; 3], &|l| axes[l]);
     }
 }

@@ -143,6 +143,16 @@ impl TraversalFrame {
         self.central_width[a]
     }
 
+    /// World length of a cell along each grid axis (the mean cell of an explicit axis);
+    /// 1 where it is not a positive finite number.
+    pub fn cell_width_world(&self) -> [f64; 3] {
+        let m = self.world_from_grid.map_or(DMat3::IDENTITY, |w| w.matrix3);
+        [0, 1, 2].map(|a| {
+            let w = m.col(a).length() / self.units_per_grid[a];
+            if w.is_finite() && w > 0.0 { w } else { 1.0 }
+        })
+    }
+
     /// Cells per axis (`dims − 1`).
     pub fn cells(&self) -> [usize; 3] {
         self.cells

@@ -2,8 +2,9 @@
 //! §7.1–7.3, §7.6), in the *slim* layout:
 //!
 //! - **No pointers** (§7.3.1): each axis is virtually padded to a power of two
-//!   (§7.3.3), so the tree is balanced and every level splits one dimension (the one whose
-//!   node extent is largest; x before y before z on ties). A node is addressed by
+//!   (§7.3.3), so the tree is balanced and every level splits one dimension: the one along
+//!   which the nodes are longest in world space ([`split_axis`]; x before y before z on
+//!   ties, so an isotropic grid halves x, y, z in turn). A node is addressed by
 //!   `(i, j, k, level)`; its children along the level's axis `a` are `2·idx[a]` and
 //!   `2·idx[a] + 1`. Min/max live in one flat array per level holding only the *real*
 //!   nodes (`ceil(cells / extent)` per axis); virtual nodes lie beyond the volume bounds,
@@ -63,6 +64,31 @@ impl Default for KdTreeConfig {
     fn default() -> Self {
         Self { unstored_levels: 2 }
     }
+}
+
+/// The axis a level splits: of those with more than one cell per node, the one along which
+/// its nodes are longest in world space (`extent` cells of `cell_mm` each), x before y
+/// before z on ties (within a relative
+/// 1e-9, so a rotation's rounding of equal spacings keeps the order). On an anisotropic
+/// grid (CT: 0.6 mm pixels, 5 mm slices) index-space halving would keep nodes 8× longer
+/// along the slices than across them, boxes that rays graze without meeting their surface;
+/// near-cubic nodes in world space cull them (docs/benchmarks.md, *Anisotropic voxels*).
+pub fn split_axis(extent: [usize; 3], cell_mm: [f64; 3]) -> usize {
+    // An axis down to one cell cannot split (the cell level's axis is unused: 0).
+    let len = [0, 1, 2].map(|a| {
+        if extent[a] > 1 {
+            extent[a] as f64 * cell_mm[a]
+        } else {
+            0.0
+        }
+    });
+    let mut axis = 0;
+    for a in 1..3 {
+        if len[a] > len[axis] * (1.0 + 1e-9) {
+            axis = a;
+        }
+    }
+    axis
 }
 
 /// Trees whose min/max take less than this stay in the last-level cache while a frame is
@@ -158,17 +184,13 @@ impl<T: Voxel> KdTree<T> {
             "more than 2^32 samples along one axis"
         );
         let mut levels = Vec::new();
+        let cell_mm = frame.cell_width_world();
         if !cells.contains(&0) {
             let mut extent = cells.map(usize::next_power_of_two);
             let (mut range_offset, mut split_offset) = (0, 0);
             loop {
                 let count = [0, 1, 2].map(|a| cells[a].div_ceil(extent[a]));
-                let mut axis = 0;
-                for a in 1..3 {
-                    if extent[a] > extent[axis] {
-                        axis = a;
-                    }
-                }
+                let axis = split_axis(extent, cell_mm);
                 // The axis the parent split varies fastest (x at the root).
                 let fast = levels.last().map_or(0, |p: &Level| p.axis);
                 let mut order = [fast, 0, 0];
@@ -748,6 +770,59 @@ mod tests {
     use crate::math::rng::Rng;
     use crate::render::NoStats;
     use crate::volume::Grid;
+
+    /// On an anisotropic grid (CT-like: 0.57 mm pixels, 5 mm slices) the levels split the
+    /// axis along which nodes are longest in world space, so no node is more than twice as
+    /// long along one axis as along another that still has cells to split; index-space
+    /// halving would keep them 8.8× longer along the slices. Equal spacings keep the
+    /// index-space order x, y, z (the tree of an isotropic grid is unchanged).
+    #[test]
+    fn levels_split_the_longest_world_axis() {
+        let dims = [64, 64, 12];
+        let voxels = vec![0i16; dims.iter().product()];
+        let mm = [0.5703125, 0.5703125, 5.0];
+        let grid = Grid::uniform(dims, [0.0; 3], mm).unwrap();
+        let frame = TraversalFrame::new(&grid);
+        let tree = KdTree::build(&voxels, dims, &frame, KdTreeConfig::default());
+        // Once the volume's own elongation is split away, every level's nodes stay within
+        // 2× between the axes that still have cells to split.
+        let mut balanced = false;
+        for lv in &tree.levels[..tree.depth] {
+            let len = [0, 1, 2].map(|a| lv.extent[a] as f64 * mm[a]);
+            let open: Vec<usize> = (0..3).filter(|&a| lv.extent[a] > 1).collect();
+            assert!(
+                open.contains(&lv.axis),
+                "{:?} splits axis {}",
+                lv.extent,
+                lv.axis
+            );
+            let longest = open.iter().map(|&a| len[a]).fold(0.0, f64::max);
+            let shortest = open.iter().map(|&a| len[a]).fold(f64::INFINITY, f64::min);
+            assert_eq!(
+                len[lv.axis], longest,
+                "{:?}: not the longest axis",
+                lv.extent
+            );
+            if balanced {
+                assert!(longest <= 2.0 * shortest, "{:?}: {len:?}", lv.extent);
+            }
+            balanced |= longest <= 2.0 * shortest;
+        }
+        assert!(balanced);
+        // The z axis (16 padded cells of 5 mm) is split before x and y are halved twice.
+        let first_z = tree.levels.iter().position(|l| l.axis == 2).unwrap();
+        assert!(first_z <= 2, "first z split at level {first_z}");
+        // Isotropic spacing: x, y, z in turn, the index-space order.
+        let iso = Grid::uniform([9, 9, 9], [0.0; 3], [0.7; 3]).unwrap();
+        let t = KdTree::build(
+            &[0u8; 729],
+            [9, 9, 9],
+            &TraversalFrame::new(&iso),
+            KdTreeConfig::default(),
+        );
+        let axes: Vec<usize> = t.levels[..t.depth].iter().map(|l| l.axis).collect();
+        assert_eq!(axes, [0, 1, 2, 0, 1, 2, 0, 1, 2]);
+    }
 
     /// The grandchild prefetch reads nothing into the traversal: the same tree with it on
     /// finds the hits it finds with it off (as a tree this small has it).

@@ -1,10 +1,12 @@
 //! Tree and treelet geometry with 64-bit addresses (thesis seed 004 §7.3, §7.8.1).
 //!
-//! The tree levels are those of the in-core slim kd-tree ([`crate::kdtree`]): each axis is
-//! virtually padded to a power of two, every level halves the node extent along its largest
-//! axis (x before y before z on ties), and only real nodes (`ceil(cells / extent)` per axis)
-//! exist. Level `depth` holds the cells. A test checks this geometry against
-//! [`crate::kdtree::KdTree`] itself.
+//! The tree levels are those of the in-core slim kd-tree ([`crate::kdtree`]) with unit cell
+//! widths: each axis is virtually padded to a power of two, every level halves the node
+//! extent along its largest axis *in cells* (x before y before z on ties), and only real
+//! nodes (`ceil(cells / extent)` per axis) exist. Level `depth` holds the cells. The in-core
+//! tree weighs the extents by the cells' world widths; a treelet file's layout depends on
+//! its dims alone, so the two trees differ on anisotropic grids (the hits do not). A test
+//! checks this geometry against [`crate::kdtree::KdTree`] on a unit grid.
 //!
 //! *Treelet level* `L` owns the node levels `first..end` (`end − first` = the treelet
 //! height, except the top-most level, which may be shorter, §7.8.1). Its treelets are the
@@ -17,6 +19,7 @@
 //! All counts and addresses are `u64`: a 2048×2048×1100 volume has more than 2³² voxels.
 
 use super::OocError;
+use crate::kdtree::split_axis;
 
 /// One level of the implicit kd-tree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -85,18 +88,16 @@ pub fn linear_index(dims: [u64; 3], p: [u64; 3]) -> u64 {
     p[0] + dims[0] * (p[1] + dims[1] * p[2])
 }
 
-/// The tree levels of the slim kd-tree over `cells` (same rule as [`crate::kdtree`]).
+/// The tree levels of the slim kd-tree over `cells` ([`crate::kdtree`]'s rule with unit cell
+/// widths).
 pub fn tree_levels(cells: [u64; 3]) -> Vec<LevelShape> {
     let mut out = Vec::new();
     let mut extent = cells.map(u64::next_power_of_two);
     loop {
         let count = [0, 1, 2].map(|a| cells[a].div_ceil(extent[a]));
-        let mut axis = 0;
-        for a in 1..3 {
-            if extent[a] > extent[axis] {
-                axis = a;
-            }
-        }
+        // Index-space halving (unit cell widths): a treelet file's layout is a function of
+        // its dims alone. Extents are at most 2^32 (checked by the layout).
+        let axis = split_axis(extent.map(|e| e as usize), [1.0; 3]);
         out.push(LevelShape {
             axis,
             extent,
