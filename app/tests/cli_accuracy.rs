@@ -51,6 +51,11 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         .join("../formats/tests/data/nifti/anatomical.nii")
         .canonicalize()
         .unwrap();
+    // A real CT (pyradiomics' chest CT, 5 mm slices of 0.57 mm pixels), cropped.
+    let ct = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../formats/tests/data/ct/lung1_spine_crop.nrrd")
+        .canonicalize()
+        .unwrap();
     ok(&[
         "accuracy",
         "--quick",
@@ -64,6 +69,8 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
         &format!("{}:40,100.5", torus.display()),
         "--volume",
         &format!("{}:9000", mri.display()),
+        "--volume",
+        &format!("{}:300,-500", ct.display()),
     ]);
     let md = std::fs::read_to_string(&md_path).unwrap();
     let json: serde_json::Value =
@@ -78,11 +85,12 @@ fn accuracy_quick_has_every_row_and_exact_is_clean_on_the_suite() {
     let datasets = json["datasets"].as_array().unwrap();
     assert_eq!(
         datasets.len(),
-        8,
-        "ML two sizes × f32/u8, the phantom smooth and noisy, and the two --volume files"
+        9,
+        "ML two sizes × f32/u8, the phantom smooth and noisy, and the three --volume files"
     );
     assert_eq!(datasets[6]["isovalues"], serde_json::json!([40.0, 100.5]));
     assert_eq!(datasets[7]["isovalues"], serde_json::json!([9000.0]));
+    assert_eq!(datasets[8]["isovalues"], serde_json::json!([300.0, -500.0]));
     for d in datasets {
         let name = d["name"].as_str().unwrap();
         let sec = section(&md, name);
