@@ -780,7 +780,7 @@ mod tests {
     fn levels_split_the_longest_world_axis() {
         let dims = [64, 64, 12];
         let voxels = vec![0i16; dims.iter().product()];
-        let mm = [0.5703125, 0.5703125, 5.0];
+        let mm = [0.570_312_5, 0.570_312_5, 5.0];
         let grid = Grid::uniform(dims, [0.0; 3], mm).unwrap();
         let frame = TraversalFrame::new(&grid);
         let tree = KdTree::build(&voxels, dims, &frame, KdTreeConfig::default());
