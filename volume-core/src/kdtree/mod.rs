@@ -68,11 +68,11 @@ impl Default for KdTreeConfig {
 
 /// The axis a level splits: of those with more than one cell per node, the one along which
 /// its nodes are longest in world space (`extent` cells of `cell_mm` each), x before y
-/// before z on ties (within a relative
-/// 1e-9, so a rotation's rounding of equal spacings keeps the order). On an anisotropic
-/// grid (CT: 0.6 mm pixels, 5 mm slices) index-space halving would keep nodes 8× longer
-/// along the slices than across them, boxes that rays graze without meeting their surface;
-/// near-cubic nodes in world space cull them (docs/benchmarks.md, *Anisotropic voxels*).
+/// before z on ties (within a relative 1e-9, so a rotation's rounding of equal spacings
+/// keeps the order). On an anisotropic grid (a CT of 0.57 mm pixels and 5 mm slices)
+/// index-space halving would keep nodes 8.8× longer along the slices than across them,
+/// boxes that rays graze without meeting their surface; near-cubic nodes in world space
+/// cull them (docs/benchmarks.md, *Anisotropic voxels*).
 pub fn split_axis(extent: [usize; 3], cell_mm: [f64; 3]) -> usize {
     // An axis down to one cell cannot split (the cell level's axis is unused: 0).
     let len = [0, 1, 2].map(|a| {
