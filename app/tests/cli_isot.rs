@@ -267,3 +267,71 @@ fn truncated_and_corrupted_files_are_errors() {
     let e = fails(&["render", s(&p), "-o", s(&out)]);
     assert!(e.contains("fake.isot"), "{e}");
 }
+
+#[test]
+fn an_anisotropic_ct_is_cut_as_the_in_core_tree_is_split() {
+    // A real CT crop of 0.57 mm pixels and 5 mm slices (formats/tests/data/ct).
+    let dir = tempfile::tempdir().unwrap();
+    let ct = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../formats/tests/data/ct/lung1_spine_crop.nrrd");
+    let isot = dir.path().join("ct.isot");
+    ok(&[
+        "preprocess",
+        s(&ct),
+        "-o",
+        s(&isot),
+        "--treelet-height",
+        "4",
+    ]);
+    let source = formats::open(&ct, &formats::OpenOptions::default()).unwrap();
+    let grid = &source.first_volume().grid;
+    let file = formats::treelet::IsotFile::open(&isot).unwrap();
+    let layout = &file.meta().layout;
+    let world = volume_core::ooc::TreeletLayout::for_grid(grid, 4).unwrap();
+    assert_eq!(*layout, world, "the file's tree splits in world space");
+    let v: serde_json::Value = serde_json::from_str(&ok(&["info", s(&isot), "--json"])).unwrap();
+    assert_eq!(v["format_version"], formats::treelet::VERSION);
+    assert_eq!(v["tree_as_in_core"], true);
+    // A version-2 file of anisotropic voxels halves in cells, and `info` says so.
+    let old =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../formats/tests/data/isot/aniso_v2.isot");
+    let v: serde_json::Value = serde_json::from_str(&ok(&["info", s(&old), "--json"])).unwrap();
+    assert_eq!(v["format_version"], 2);
+    assert_eq!(v["tree_as_in_core"], false);
+    assert!(ok(&["info", s(&old)]).contains("halved in cells, not as in core"));
+    let index = volume_core::ooc::TreeletLayout::new(layout.dims(), 4).unwrap();
+    assert_ne!(layout.split_axes(), index.split_axes());
+    // Bone and skin render the in-core depths, bit for bit.
+    let mut depths = Vec::new();
+    for f in [&ct, &isot] {
+        let npy = dir
+            .path()
+            .join(format!("{}.npy", f.file_name().unwrap().to_string_lossy()));
+        ok(&[
+            "render",
+            s(f),
+            "--iso",
+            "300",
+            "--iso",
+            "-500:#4080ff:0.5",
+            "--orbit",
+            "30,45",
+            "--size",
+            "64x48",
+            "-o",
+            s(&npy.with_extension("png")),
+            "--depth-out",
+            s(&npy),
+        ]);
+        let read = isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap());
+        depths.push(read.unwrap().1);
+    }
+    let hits = depths[0].iter().filter(|d| d.is_finite()).count();
+    assert!(hits > 500, "{hits}");
+    for (k, (x, y)) in depths[0].iter().zip(&depths[1]).enumerate() {
+        assert!(
+            x.to_bits() == y.to_bits(),
+            "pixel {k}: in-core {x}, out-of-core {y}"
+        );
+    }
+}

@@ -73,7 +73,7 @@ fn main() {
                 formats::open(input, &formats::OpenOptions::default()).expect("open input");
             let volume = dataset.first_volume();
             let dims = volume.dims().map(|d| d as u64);
-            let layout = TreeletLayout::new(dims, height).expect("layout");
+            let layout = TreeletLayout::for_grid(&volume.grid, height).expect("layout");
             let start = Instant::now();
             let report = formats::treelet::write_isot_volume(
                 Path::new(&args[2]),

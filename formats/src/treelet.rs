@@ -4,8 +4,8 @@
 //! The layout is specified in `docs/treelet-format.md`; in short:
 //!
 //! - header (page-aligned, padded): magic, version, page size, voxel type, dims, treelet
-//!   height, quantizer, grid geometry, level table, page count, CRC table offset, and a
-//!   CRC32 of the header itself;
+//!   height, the tree's split axes, quantizer, grid geometry, level table, page count, CRC
+//!   table offset, and a CRC32 of the header itself;
 //! - data pages: each treelet level in turn (coarsest first), starting on a page boundary,
 //!   treelets in index order in fixed-size *slots* (`u32` length + the record); several
 //!   slots per page when they fit, otherwise each slot takes whole pages. A treelet's
@@ -35,9 +35,10 @@ use crate::output::Replace;
 
 /// File magic: "ISOT", then bytes that break text-mode transfers (as PNG does).
 pub const MAGIC: [u8; 8] = *b"ISOT\r\n\x1a\n";
-/// The version written. Version 1 (no world frame, no value map) is still read: its values
-/// are physical and its frame unknown.
-pub const VERSION: u32 = 2;
+/// The version written. Version 3 records the tree's split axes; versions 1 and 2 halve in
+/// cells. Version 1 (no world frame, no value map) is read with physical values and an
+/// unknown frame.
+pub const VERSION: u32 = 3;
 pub const PAGE: u64 = 4096;
 const FIELD_HEADER: &str = "isot header";
 
@@ -49,9 +50,12 @@ pub struct LevelPlan {
     pub page_count: u64,
     /// Bytes per slot: `u32` record length + the largest record of the level.
     pub slot_bytes: u64,
-    /// Slots per page, or 0 when a slot spans whole pages.
+    /// Slots per page, or 0 when a slot is larger than a page.
     pub slots_per_page: u64,
     pub treelet_count: u64,
+    /// Slots larger than a page follow one another across page boundaries (version 3);
+    /// before, each took whole pages. Not stored: it follows from the version.
+    pub packed: bool,
 }
 
 impl LevelPlan {
@@ -61,13 +65,15 @@ impl LevelPlan {
             Some(page) => {
                 (self.first_page + page) * PAGE + (index % self.slots_per_page) * self.slot_bytes
             }
+            None if self.packed => self.first_page * PAGE + index * self.slot_bytes,
             None => (self.first_page + index * self.slot_bytes.div_ceil(PAGE)) * PAGE,
         }
     }
 }
 
-/// The page plan of every level of `meta`.
-pub fn plan_levels(meta: &OocMeta) -> Vec<LevelPlan> {
+/// The page plan of every level of `meta` in a file of format `version`.
+pub fn plan_levels(meta: &OocMeta, version: u32) -> Vec<LevelPlan> {
+    let packed = version >= 3;
     let mut page = 0;
     (0..meta.layout.level_count())
         .map(|l| {
@@ -80,6 +86,10 @@ pub fn plan_levels(meta: &OocMeta) -> Vec<LevelPlan> {
             };
             let page_count = if slots_per_page > 0 {
                 treelet_count.div_ceil(slots_per_page)
+            } else if packed {
+                // A slot just over a page (a CT's anisotropic treelet with its border and
+                // node ranges) would otherwise waste nearly half of its second page.
+                (treelet_count * slot_bytes).div_ceil(PAGE)
             } else {
                 treelet_count * slot_bytes.div_ceil(PAGE)
             };
@@ -89,6 +99,7 @@ pub fn plan_levels(meta: &OocMeta) -> Vec<LevelPlan> {
                 slot_bytes,
                 slots_per_page,
                 treelet_count,
+                packed,
             };
             page += page_count;
             p
@@ -110,6 +121,10 @@ fn encode_header(meta: &OocMeta, plans: &[LevelPlan], data_pages: u64, crc_offse
         h.extend_from_slice(&d.to_le_bytes());
     }
     h.extend_from_slice(&meta.layout.treelet_height().to_le_bytes());
+    // Version 3: the split axis of each inner tree level.
+    let axes = meta.layout.split_axes();
+    h.push(u8::try_from(axes.len()).expect("at most 96 tree levels"));
+    h.extend_from_slice(&axes);
     h.extend_from_slice(&meta.quantizer.bits.to_le_bytes());
     h.extend_from_slice(&meta.quantizer.lo.to_le_bytes());
     h.extend_from_slice(&meta.quantizer.hi.to_le_bytes());
@@ -236,6 +251,7 @@ impl std::ops::Deref for IsotBytes {
 /// An open `.isot` file: a [`TreeletStorage`] over a read-only memory map.
 pub struct IsotFile {
     path: PathBuf,
+    version: u32,
     map: IsotBytes,
     meta: OocMeta,
     plans: Vec<LevelPlan>,
@@ -349,8 +365,15 @@ impl IsotFile {
             .ok_or_else(|| bad(path, "voxel type", &format!("unknown type {name:?}")))?;
         let dims = [c.u64("dims")?, c.u64("dims")?, c.u64("dims")?];
         let height = c.u32("treelet height")?;
-        let layout = TreeletLayout::new(dims, height)
-            .map_err(|e| bad(path, "dims/height", &e.to_string()))?;
+        let layout = if version >= 3 {
+            let n = c.u8("split axis count")?;
+            let axes = c.take(usize::from(n), "split axes")?;
+            TreeletLayout::with_axes(dims, height, axes)
+                .map_err(|e| bad(path, "dims/height/split axes", &e.to_string()))?
+        } else {
+            TreeletLayout::new(dims, height)
+                .map_err(|e| bad(path, "dims/height", &e.to_string()))?
+        };
         let bits = c.u32("quantizer bits")?;
         let lo = c.f64("quantizer lo")?;
         let hi = c.f64("quantizer hi")?;
@@ -428,7 +451,7 @@ impl IsotFile {
             quantizer,
             value_map,
         };
-        let plans = plan_levels(&meta);
+        let plans = plan_levels(&meta, version);
         let n = c.u32("level count")? as usize;
         if n != plans.len() {
             return Err(bad(
@@ -444,6 +467,7 @@ impl IsotFile {
                 slot_bytes: c.u64("level table")?,
                 slots_per_page: c.u64("level table")?,
                 treelet_count: c.u64("level table")?,
+                packed: p.packed,
             };
             if stored != *p {
                 return Err(bad(
@@ -493,6 +517,7 @@ impl IsotFile {
         }
         Ok(Self {
             path: path.to_path_buf(),
+            version,
             map,
             meta,
             plans,
@@ -504,6 +529,11 @@ impl IsotFile {
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The format version the file was written in ([`VERSION`] or older).
+    pub fn version(&self) -> u32 {
+        self.version
     }
 
     pub fn plans(&self) -> &[LevelPlan] {
@@ -629,7 +659,7 @@ impl TreeletSink for PageWriter {
     fn begin(&mut self, meta: &OocMeta) -> Result<(), OocError> {
         let mut meta = meta.clone();
         meta.value_map = self.value_map;
-        self.plans = plan_levels(&meta);
+        self.plans = plan_levels(&meta, VERSION);
         let pages = self.plans.last().map_or(0, |p| p.first_page + p.page_count);
         self.crcs = vec![0; pages as usize];
         let header = encode_header(&meta, &self.plans, pages, 0);
@@ -665,12 +695,19 @@ impl TreeletSink for PageWriter {
             }
             self.buf.resize((in_page * p.slot_bytes) as usize, 0);
         }
+        let start = self.buf.len() as u64;
         self.buf
             .extend_from_slice(&(bytes.len() as u32).to_le_bytes());
         self.buf.extend_from_slice(bytes);
         if p.slots_per_page == 0 {
-            self.buf
-                .resize((p.slot_bytes.div_ceil(PAGE) * PAGE) as usize, 0);
+            // Packed: the slot ends where the next begins; else on a page boundary (the
+            // buffer then starts each slot on one).
+            let end = if p.packed {
+                start + p.slot_bytes
+            } else {
+                p.slot_bytes.div_ceil(PAGE) * PAGE
+            };
+            self.buf.resize(end as usize, 0);
         }
         while self.buf.len() >= PAGE as usize {
             let rest = self.buf.split_off(PAGE as usize);
@@ -995,8 +1032,9 @@ mod tests {
     }
 
     /// File -> loader -> OocScene at the finest level equals the in-core GridScene.
-    #[test]
-    fn rendering_from_the_file_equals_in_core() {
+    /// Hits of the `.isot` at `path`, all levels loaded, against the in-core scene of
+    /// `volume`, for a grid of parallel rays from below `z` (returns the hit count).
+    fn assert_file_hits_as_in_core(path: &Path, volume: &RectilinearVolume, iso: f32) -> usize {
         use volume_core::grid::AnyGridScene;
         use volume_core::intersect::Intersector;
         use volume_core::math::Ray;
@@ -1013,31 +1051,115 @@ mod tests {
                     .collect()
             }
         }
+        let ooc = open_isot(path, volume_core::ooc::OocOptions::default()).unwrap();
+        let iso = [iso];
+        ooc.set_isovalues(&iso);
+        assert!(ooc.wait_until_finished(std::time::Duration::from_mins(1)));
+        assert_eq!(ooc.error(), None);
+        assert_eq!(ooc.loaded_levels(), ooc.level_count());
+        let incore = AnyGridScene::new(volume, Intersector::Exact);
+        // Aimed at a 40 × 40 lattice over the mid-z plane, a little wider than the box.
+        let (lo, hi) = volume.grid.grid_bounds();
+        let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+        let dir = glam::Vec3::new(0.3, 0.2, 1.0).normalize();
+        let mut rays = Vec::new();
+        for j in 0..40 {
+            for i in 0..40 {
+                let u = glam::Vec3::new(
+                    i as f32 / 39.0 * 1.2 - 0.1,
+                    j as f32 / 39.0 * 1.2 - 0.1,
+                    0.5,
+                );
+                let target = lo + (hi - lo) * u;
+                rays.push(Ray::new(target - dir * 2.0 * (hi - lo).length(), dir));
+            }
+        }
+        let a = incore.visit(Trace(rays.clone(), iso));
+        let b = ooc.visit_scene(Intersector::Exact, Normals::Smooth, Trace(rays, iso));
+        assert_eq!(a, b);
+        a.iter().filter(|h| h.is_some()).count()
+    }
+
+    #[test]
+    fn rendering_from_the_file_equals_in_core() {
         let dims = [37usize, 21, 15];
         let (grid, v) = volume(dims);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("r.isot");
         let layout = TreeletLayout::new(dims.map(|d| d as u64), 4).unwrap();
         write_isot(&path, &grid, &v, layout, Replace::Refuse, &mut |_, _| {}).unwrap();
-        let ooc = open_isot(&path, volume_core::ooc::OocOptions::default()).unwrap();
-        let iso = [612.5f32];
-        ooc.set_isovalues(&iso);
-        assert!(ooc.wait_until_finished(std::time::Duration::from_mins(1)));
-        assert_eq!(ooc.error(), None);
-        assert_eq!(ooc.loaded_levels(), ooc.level_count());
         let volume = RectilinearVolume::new(grid, v.into()).unwrap();
-        let incore = AnyGridScene::new(&volume, Intersector::Exact);
-        let mut rays = Vec::new();
-        for j in 0..40 {
-            for i in 0..40 {
-                let o = glam::Vec3::new(-10.0 + i as f32 * 0.7, -8.0 + j as f32 * 0.6, -20.0);
-                rays.push(Ray::new(o, glam::Vec3::new(0.3, 0.2, 1.0).normalize()));
+        assert!(assert_file_hits_as_in_core(&path, &volume, 612.5) > 100);
+    }
+
+    /// A version-3 file records the world-space split of an anisotropic grid (0.6 × 0.6 × 4
+    /// mm cells); a version-2 file of the same volume, written by `isoscope preprocess`
+    /// before the axes were recorded, still opens with its tree halved in cells. Both render
+    /// the in-core hits.
+    #[test]
+    fn split_axes_are_recorded_and_version_2_halves_in_cells() {
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/isot");
+        let opened = crate::open(&data.join("aniso.nrrd"), &crate::OpenOptions::default());
+        let volume = opened.unwrap().first_volume().clone();
+        let dims = volume.grid.dims().map(|d| d as u64);
+        let world = |h| TreeletLayout::for_grid(&volume.grid, h).unwrap();
+        let index = |h| TreeletLayout::new(dims, h).unwrap();
+        assert_ne!(world(6).split_axes(), index(6).split_axes());
+
+        let old = data.join("aniso_v2.isot");
+        let bytes = std::fs::read(&old).unwrap();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
+        let f = IsotFile::open(&old).unwrap();
+        f.verify().unwrap();
+        assert_eq!(f.meta().layout, index(6));
+        assert_eq!(f.meta().grid, volume.grid);
+        assert!(assert_file_hits_as_in_core(&old, &volume, 400.0) > 100);
+
+        let dir = tempfile::tempdir().unwrap();
+        let new = dir.path().join("w.isot");
+        write_isot_volume(&new, &volume, world(3), Replace::Refuse, &mut |_, _| {}).unwrap();
+        let bytes = std::fs::read(&new).unwrap();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 3);
+        let f = IsotFile::open(&new).unwrap();
+        f.verify().unwrap();
+        assert_eq!(f.meta().layout, world(3));
+        assert!(assert_file_hits_as_in_core(&new, &volume, 400.0) > 100);
+    }
+
+    /// Version 3 packs slots larger than a page back to back across page boundaries; every
+    /// treelet still reads back whole and checked (a CT-like `i16` grid of 0.6 × 0.6 × 4 mm
+    /// cells, whose world-space treelets of height 9 take more than a page).
+    #[test]
+    fn slots_larger_than_a_page_are_packed() {
+        let dims = [40usize, 36, 12];
+        let grid = Grid::uniform(dims, [0.0; 3], [0.6, 0.6, 4.0]).unwrap();
+        let mut v = Vec::new();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let d = ((i as f64 - 17.0).powi(2) + (j as f64 - 15.0).powi(2)).sqrt();
+                    v.push((1000.0 - 60.0 * d + 40.0 * k as f64) as i16);
+                }
             }
         }
-        let a = incore.visit(Trace(rays.clone(), iso));
-        let b = ooc.visit_scene(Intersector::Exact, Normals::Smooth, Trace(rays, iso));
-        assert!(a.iter().filter(|h| h.is_some()).count() > 100);
-        assert_eq!(a, b);
+        let volume = RectilinearVolume::new(grid, v.into()).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.isot");
+        let layout = TreeletLayout::for_grid(&volume.grid, 9).unwrap();
+        write_isot_volume(&path, &volume, layout, Replace::Refuse, &mut |_, _| {}).unwrap();
+        let f = IsotFile::open(&path).unwrap();
+        let big = f.plans().iter().filter(|p| p.slots_per_page == 0).count();
+        assert!(big > 0 && f.plans().iter().all(|p| p.packed));
+        // Packed: the level's pages hold its slots with less than a page to spare.
+        for p in f.plans().iter().filter(|p| p.slots_per_page == 0) {
+            assert_eq!(
+                p.page_count,
+                (p.treelet_count * p.slot_bytes).div_ceil(PAGE)
+            );
+            assert!(p.slot_bytes % PAGE != 0);
+        }
+        f.verify().unwrap();
+        assert!(assert_file_hits_as_in_core(&path, &volume, 400.0) > 100);
     }
 
     /// The finished file has the mode `File::create` gives (0666 minus the umask), not the
@@ -1076,7 +1198,30 @@ mod tests {
             quantizer: Quantizer::for_type(VoxelType::U8, 0.0, 255.0),
             value_map: ValueMap::IDENTITY,
         };
-        let plans = plan_levels(&meta);
+        // Both slot rules (version 3 packs slots larger than a page), and a layout split in
+        // world space (a CT's 0.6 × 0.6 × 4 mm `i16` cells: slots of more than a page).
+        let ct =
+            TreeletLayout::for_grid(&Grid::uniform(dims, [0.0; 3], [0.6, 0.6, 4.0]).unwrap(), 9)
+                .unwrap();
+        let ct_meta = OocMeta {
+            layout: ct,
+            voxel_type: VoxelType::I16,
+            quantizer: Quantizer::for_type(VoxelType::I16, -1024.0, 3071.0),
+            ..meta.clone()
+        };
+        let mut packed_levels = 0;
+        for (meta, version) in [(&meta, 2), (&meta, VERSION), (&ct_meta, VERSION)] {
+            let plans = plan_levels(meta, version);
+            packed_levels += plans
+                .iter()
+                .filter(|p| p.packed && p.slots_per_page == 0)
+                .count();
+            check_plans(meta, &plans);
+        }
+        assert!(packed_levels > 0);
+    }
+
+    fn check_plans(meta: &OocMeta, plans: &[LevelPlan]) {
         let last = plans.last().unwrap();
         let end = (last.first_page + last.page_count) * PAGE;
         assert!(end > 1 << 32, "{end}");
@@ -1084,6 +1229,9 @@ mod tests {
             let i = p.treelet_count - 1;
             let page = u128::from(PAGE);
             let want = match u128::from(p.slots_per_page) {
+                0 if p.packed => {
+                    u128::from(p.first_page) * page + u128::from(i) * u128::from(p.slot_bytes)
+                }
                 0 => {
                     (u128::from(p.first_page)
                         + u128::from(i) * u128::from(p.slot_bytes.div_ceil(PAGE)))

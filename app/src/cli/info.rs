@@ -567,6 +567,12 @@ pub struct IsotInfoReport {
     pub treelets: u64,
     /// Bits per quantized min/max code.
     pub quantizer_bits: u32,
+    /// The file's format version.
+    pub format_version: u32,
+    /// Whether the file's tree splits its nodes as the in-core tree of its grid does (along
+    /// their longest world axis); files before version 3 halve them in cells, which differs
+    /// on anisotropic voxels.
+    pub tree_as_in_core: bool,
     pub file_bytes: u64,
 }
 
@@ -705,6 +711,12 @@ pub fn gather_isot(path: &Path) -> anyhow::Result<IsotInfoReport> {
         treelet_height: meta.layout.treelet_height(),
         treelets: meta.layout.treelet_count(),
         quantizer_bits: q.bits,
+        format_version: file.version(),
+        tree_as_in_core: volume_core::ooc::TreeletLayout::for_grid(
+            &meta.grid,
+            meta.layout.treelet_height(),
+        )
+        .is_ok_and(|in_core| in_core == meta.layout),
         file_bytes: std::fs::metadata(path)
             .with_context(|| format!("cannot read {}", path.display()))?
             .len(),
@@ -821,6 +833,18 @@ pub fn render_isot_text(r: &IsotInfoReport) -> String {
         out,
         "treelets:     {} in {} levels, height {}, min/max in {} bits",
         r.treelets, r.levels, r.treelet_height, r.quantizer_bits
+    );
+    let tree = if r.tree_as_in_core {
+        "as in core: each level splits its nodes' longest world axis"
+    } else {
+        // Files before version 3 halve nodes in cells.
+        "halved in cells, not as in core (preprocess the source again: faster on anisotropic \
+         voxels)"
+    };
+    let _ = writeln!(
+        out,
+        "tree:         {tree} (format version {})",
+        r.format_version
     );
     out
 }

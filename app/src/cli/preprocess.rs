@@ -88,10 +88,10 @@ pub fn build(args: &Args, progress: &mut dyn FnMut(u64, u64)) -> anyhow::Result<
         );
     }
     let volume = dataset.first_volume();
-    let dims = volume.dims().map(|d| d as u64);
+    // The tree splits as the in-core tree does, along its nodes' longest world axis.
     let layout = match args.levels {
-        Levels::Auto => TreeletLayout::new(dims, args.treelet_height),
-        Levels::Count(n) => TreeletLayout::with_levels(dims, n),
+        Levels::Auto => TreeletLayout::for_grid(&volume.grid, args.treelet_height),
+        Levels::Count(n) => TreeletLayout::for_grid_with_levels(&volume.grid, n),
     }
     .with_context(|| format!("{}: cannot cut into treelets", args.input.display()))?;
     let levels = layout.level_count();

@@ -405,6 +405,12 @@ impl<T: Voxel> KdTree<T> {
         self.stored
     }
 
+    /// The split axis of inner `level` (tests compare it with the treelet layout's).
+    #[cfg(test)]
+    pub(crate) fn level_axis(&self, level: usize) -> usize {
+        self.levels[level].axis
+    }
+
     /// Min/max of node `(i, j, k)` at a stored `level`, or `None` for an unstored level or
     /// a node that does not exist (virtual or out of range).
     pub fn node_range(&self, level: usize, node: [usize; 3]) -> Option<(T, T)> {

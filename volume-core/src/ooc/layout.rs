@@ -1,12 +1,14 @@
 //! Tree and treelet geometry with 64-bit addresses (thesis seed 004 §7.3, §7.8.1).
 //!
-//! The tree levels are those of the in-core slim kd-tree ([`crate::kdtree`]) with unit cell
-//! widths: each axis is virtually padded to a power of two, every level halves the node
-//! extent along its largest axis *in cells* (x before y before z on ties), and only real
-//! nodes (`ceil(cells / extent)` per axis) exist. Level `depth` holds the cells. The in-core
-//! tree weighs the extents by the cells' world widths; a treelet file's layout depends on
-//! its dims alone, so the two trees differ on anisotropic grids (the hits do not). A test
-//! checks this geometry against [`crate::kdtree::KdTree`] on a unit grid.
+//! The tree levels are those of the in-core slim kd-tree ([`crate::kdtree`]): each axis is
+//! virtually padded to a power of two, every level halves the node extent along its longest
+//! axis ([`split_axis`]), and only real nodes (`ceil(cells / extent)` per axis) exist. Level
+//! `depth` holds the cells. A layout made for a grid ([`TreeletLayout::for_grid`]) weighs the
+//! extents by the cells' world widths, as the in-core tree does, so on anisotropic voxels
+//! both trees split alike; a file records the axes it was cut with
+//! ([`TreeletLayout::split_axes`], [`TreeletLayout::with_axes`]). [`TreeletLayout::new`]
+//! halves in cells (x before y before z on ties): the rule of files that record no axes.
+//! Tests check this geometry against [`crate::kdtree::KdTree`].
 //!
 //! *Treelet level* `L` owns the node levels `first..end` (`end − first` = the treelet
 //! height, except the top-most level, which may be shorter, §7.8.1). Its treelets are the
@@ -19,7 +21,9 @@
 //! All counts and addresses are `u64`: a 2048×2048×1100 volume has more than 2³² voxels.
 
 use super::OocError;
+use crate::intersect::TraversalFrame;
 use crate::kdtree::split_axis;
+use crate::volume::Grid;
 
 /// One level of the implicit kd-tree.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -88,32 +92,89 @@ pub fn linear_index(dims: [u64; 3], p: [u64; 3]) -> u64 {
     p[0] + dims[0] * (p[1] + dims[1] * p[2])
 }
 
-/// The tree levels of the slim kd-tree over `cells` ([`crate::kdtree`]'s rule with unit cell
-/// widths).
-pub fn tree_levels(cells: [u64; 3]) -> Vec<LevelShape> {
+/// The tree levels of the slim kd-tree over `cells` `cell_mm` wide ([`crate::kdtree`]'s
+/// rule: [`split_axis`]).
+pub fn tree_levels(cells: [u64; 3], cell_mm: [f64; 3]) -> Vec<LevelShape> {
+    // Widths that are not positive numbers count as 1, as `cell_width_world` gives them.
+    let cell_mm = cell_mm.map(|w| if w.is_finite() && w > 0.0 { w } else { 1.0 });
+    // Extents are at most 2^32 (checked by the layout).
+    levels_by(cells, |extent, _| {
+        Some(split_axis(extent.map(|e| e as usize), cell_mm))
+    })
+    .expect("split_axis picks an axis longer than one cell")
+}
+
+/// The tree levels over `cells` split along `axes` in turn (a file's), or `None` unless they
+/// halve the padded extents down to one cell, each along an axis longer than one cell.
+pub fn tree_levels_from_axes(cells: [u64; 3], axes: &[u8]) -> Option<Vec<LevelShape>> {
+    let shapes = levels_by(cells, |_, level| axes.get(level).map(|&a| usize::from(a)))?;
+    (shapes.len() == axes.len() + 1).then_some(shapes)
+}
+
+/// The levels with the split axis of each chosen by `pick(extent, level)`: `None` when it
+/// picks none, or an axis that is not longer than one cell.
+fn levels_by(
+    cells: [u64; 3],
+    mut pick: impl FnMut([u64; 3], usize) -> Option<usize>,
+) -> Option<Vec<LevelShape>> {
     let mut out = Vec::new();
     let mut extent = cells.map(u64::next_power_of_two);
     loop {
         let count = [0, 1, 2].map(|a| cells[a].div_ceil(extent[a]));
-        // Index-space halving (unit cell widths): a treelet file's layout is a function of
-        // its dims alone. Extents are at most 2^32 (checked by the layout).
-        let axis = split_axis(extent.map(|e| e as usize), [1.0; 3]);
+        if extent == [1, 1, 1] {
+            // The cell level: its axis is unused.
+            out.push(LevelShape {
+                axis: 0,
+                extent,
+                count,
+            });
+            return Some(out);
+        }
+        let axis = pick(extent, out.len()).filter(|&a| a < 3 && extent[a] > 1)?;
         out.push(LevelShape {
             axis,
             extent,
             count,
         });
-        if extent == [1, 1, 1] {
-            return out;
-        }
         extent[axis] /= 2;
     }
 }
 
 impl TreeletLayout {
     /// The layout of a `dims` sample volume cut into treelets of `treelet_height` node
-    /// levels (the thesis found 9 best, §7.9.1).
+    /// levels (the thesis found 9 best, §7.9.1), its tree halving in cells: the rule of
+    /// files that record no split axes, and of grids whose cells are cubes.
     pub fn new(dims: [u64; 3], treelet_height: u32) -> Result<Self, OocError> {
+        Self::with_shapes(dims, treelet_height, |cells| {
+            Some(tree_levels(cells, [1.0; 3]))
+        })
+    }
+
+    /// The layout of `grid` with its tree split as the in-core tree splits it: along the
+    /// nodes' longest axis in world space ([`split_axis`] with the cells' world widths).
+    pub fn for_grid(grid: &Grid, treelet_height: u32) -> Result<Self, OocError> {
+        let cell_mm = TraversalFrame::new(grid).cell_width_world();
+        let dims = grid.dims().map(|d| d as u64);
+        Self::with_shapes(dims, treelet_height, |cells| {
+            Some(tree_levels(cells, cell_mm))
+        })
+    }
+
+    /// The layout whose tree levels split along `axes` in turn (as a file records them,
+    /// [`TreeletLayout::split_axes`]); an error unless they halve every axis down to one
+    /// cell.
+    pub fn with_axes(dims: [u64; 3], treelet_height: u32, axes: &[u8]) -> Result<Self, OocError> {
+        Self::with_shapes(dims, treelet_height, |cells| {
+            tree_levels_from_axes(cells, axes)
+        })
+    }
+
+    /// The checks of the constructors, then the cut of `shapes(cells)` into treelet levels.
+    fn with_shapes(
+        dims: [u64; 3],
+        treelet_height: u32,
+        shapes: impl FnOnce([u64; 3]) -> Option<Vec<LevelShape>>,
+    ) -> Result<Self, OocError> {
         if !(1..=24).contains(&treelet_height) {
             return Err(OocError::BadHeight(treelet_height));
         }
@@ -132,7 +193,8 @@ impl TreeletLayout {
             .filter(|&n| n <= u64::MAX / 16)
             .ok_or_else(|| bad("voxel count overflows 64-bit addresses"))?;
         let cells = dims.map(|d| d - 1);
-        let shapes = tree_levels(cells);
+        let shapes = shapes(cells)
+            .ok_or_else(|| bad("the split axes do not halve every axis down to one cell"))?;
         let depth = shapes.len() - 1;
         let h = treelet_height as usize;
         let n = depth.div_ceil(h).max(1);
@@ -162,12 +224,20 @@ impl TreeletLayout {
         })
     }
 
-    /// The layout with `levels` treelet levels (the height is chosen to fit).
-    pub fn with_levels(dims: [u64; 3], levels: usize) -> Result<Self, OocError> {
-        let cells = dims.map(|d| d.saturating_sub(1).max(1));
-        let depth = tree_levels(cells).len() - 1;
+    /// The layout of `grid` ([`TreeletLayout::for_grid`]) with `levels` treelet levels (the
+    /// height is chosen to fit).
+    pub fn for_grid_with_levels(grid: &Grid, levels: usize) -> Result<Self, OocError> {
+        let cells = grid.dims().map(|d| (d as u64).saturating_sub(1).max(1));
+        let cell_mm = TraversalFrame::new(grid).cell_width_world();
+        let depth = tree_levels(cells, cell_mm).len() - 1;
         let h = depth.div_ceil(levels.max(1)).clamp(1, 24);
-        Self::new(dims, h as u32)
+        Self::for_grid(grid, h as u32)
+    }
+
+    /// The split axis of each inner tree level, root first (what a file records).
+    pub fn split_axes(&self) -> Vec<u8> {
+        let inner = &self.shapes[..self.shapes.len() - 1];
+        inner.iter().map(|s| s.axis as u8).collect()
     }
 
     pub fn dims(&self) -> [u64; 3] {
@@ -263,17 +333,32 @@ mod tests {
 
     #[test]
     fn tree_levels_match_the_in_core_kdtree() {
-        for dims in [[2, 2, 2], [5, 3, 9], [17, 2, 33], [40, 41, 7], [2, 100, 2]] {
+        // Cubic cells, then anisotropic ones (a CT's 0.57 mm pixels and 5 mm slices, and
+        // others) where the world rule and halving in cells differ.
+        let cases = [
+            ([2, 2, 2], [1.0; 3]),
+            ([5, 3, 9], [1.0; 3]),
+            ([17, 2, 33], [1.0; 3]),
+            ([40, 41, 7], [1.0; 3]),
+            ([2, 100, 2], [1.0; 3]),
+            ([65, 65, 9], [0.57, 0.57, 5.0]),
+            ([40, 41, 7], [0.3, 2.0, 1.0]),
+            ([9, 30, 30], [4.0, 1.0, 0.25]),
+        ];
+        for (dims, spacing) in cases {
             let n: usize = dims.iter().product();
             let voxels: Vec<u8> = (0..n).map(|i| (i * 37 % 251) as u8).collect();
-            let grid = Grid::uniform(dims, [0.0; 3], [1.0; 3]).unwrap();
+            let grid = Grid::uniform(dims, [0.0; 3], spacing).unwrap();
             let frame = TraversalFrame::new(&grid);
             let config = KdTreeConfig { unstored_levels: 0 };
             let tree = KdTree::build(&voxels, dims, &frame, config);
             let cells = dims.map(|d| d as u64 - 1);
-            let shapes = tree_levels(cells);
+            let layout = TreeletLayout::for_grid(&grid, 3).unwrap();
+            let shapes = layout.shapes();
+            assert_eq!(shapes, tree_levels(cells, spacing).as_slice());
             assert_eq!(shapes.len() - 1, tree.depth(), "{dims:?}");
             for (l, s) in shapes.iter().enumerate().take(tree.depth()) {
+                assert_eq!(s.axis, tree.level_axis(l), "{dims:?} {spacing:?} level {l}");
                 let c = s.count.map(|x| x as usize);
                 assert!(tree.node_range(l, c.map(|x| x - 1)).is_some());
                 for a in 0..3 {
@@ -282,6 +367,42 @@ mod tests {
                     assert!(tree.node_range(l, past).is_none(), "{dims:?} level {l}");
                 }
             }
+            if spacing == [1.0; 3] {
+                assert_eq!(
+                    layout,
+                    TreeletLayout::new(dims.map(|d| d as u64), 3).unwrap()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn recorded_axes_give_the_layout_back_and_bad_ones_are_refused() {
+        let grid = Grid::uniform([65, 65, 9], [0.0; 3], [0.57, 0.57, 5.0]).unwrap();
+        let world = TreeletLayout::for_grid(&grid, 4).unwrap();
+        let axes = world.split_axes();
+        assert_eq!(axes.len(), world.depth());
+        let dims = [65, 65, 9];
+        assert_eq!(TreeletLayout::with_axes(dims, 4, &axes).unwrap(), world);
+        // The root splits z in world space: 8 slices of 5 mm (40 mm) against 64 pixels of
+        // 0.57 mm (36.5 mm); halving in cells splits x first.
+        assert_eq!(axes[0], 2);
+        let index = TreeletLayout::new(dims, 4).unwrap();
+        assert_eq!(index.split_axes()[0], 0);
+        // Another order that halves every axis is a valid layout of its own.
+        assert_eq!(
+            TreeletLayout::with_axes(dims, 4, &index.split_axes()).unwrap(),
+            index
+        );
+        // Too few, too many, an axis already one cell wide, no such axis.
+        let bad = [
+            axes[..axes.len() - 1].to_vec(),
+            [axes.clone(), vec![0]].concat(),
+            vec![2; axes.len()],
+            [vec![3], axes[1..].to_vec()].concat(),
+        ];
+        for b in &bad {
+            assert!(TreeletLayout::with_axes(dims, 4, b).is_err(), "{b:?}");
         }
     }
 
@@ -308,9 +429,12 @@ mod tests {
         assert!(TreeletLayout::new([1, 5, 5], 9).is_err());
         assert!(TreeletLayout::new([5, 5, 5], 0).is_err());
         assert_eq!(
-            TreeletLayout::with_levels([257; 3], 4)
-                .unwrap()
-                .level_count(),
+            TreeletLayout::for_grid_with_levels(
+                &Grid::uniform([257; 3], [0.0; 3], [1.0; 3]).unwrap(),
+                4
+            )
+            .unwrap()
+            .level_count(),
             4
         );
     }

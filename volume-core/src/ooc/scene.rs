@@ -1642,7 +1642,14 @@ mod tests {
     fn setup(dims: [usize; 3], h: u32, budget: u64) -> (Grid, Vec<f32>, OocVolume<f32>) {
         let grid = Grid::uniform(dims, [-3.0, 1.0, 2.0], [1.0, 0.75, 1.5]).unwrap();
         let voxels = blobs(dims);
-        let layout = TreeletLayout::new(dims.map(|d| d as u64), h).unwrap();
+        // Split as the in-core tree is (in world space: these cells are not cubes).
+        let layout = TreeletLayout::for_grid(&grid, h).unwrap();
+        assert_ne!(
+            layout.split_axes(),
+            TreeletLayout::new(dims.map(|d| d as u64), h)
+                .unwrap()
+                .split_axes()
+        );
         let mut store = MemoryStorage::new();
         build_treelets(&grid, &voxels, layout, &mut store, &mut |_, _| {}).unwrap();
         let vol = OocVolume::<f32>::open(
