@@ -53,6 +53,38 @@ fn render(file: &Path, out: &Path, extra: &[&str]) -> String {
     err
 }
 
+/// Renders each of `files` (in core, then out of core) with `args` at `size` into `dir` and
+/// asserts the same depth maps, bit for bit, with at least `min_hits` hits.
+fn assert_same_depths(dir: &Path, files: [&Path; 2], args: &[&str], size: &str, min_hits: usize) {
+    let mut depths = Vec::new();
+    for f in files {
+        let npy = dir.join(format!("{}.npy", f.file_name().unwrap().to_string_lossy()));
+        let png = npy.with_extension("png");
+        let mut all = vec![
+            "render",
+            s(f),
+            "--size",
+            size,
+            "-o",
+            s(&png),
+            "--depth-out",
+            s(&npy),
+        ];
+        all.extend_from_slice(args);
+        ok(&all);
+        let read = isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap());
+        depths.push(read.unwrap().1);
+    }
+    let hits = depths[0].iter().filter(|d| d.is_finite()).count();
+    assert!(hits >= min_hits, "{hits}");
+    for (k, (x, y)) in depths[0].iter().zip(&depths[1]).enumerate() {
+        assert!(
+            x.to_bits() == y.to_bits(),
+            "pixel {k}: in-core {x}, out-of-core {y}"
+        );
+    }
+}
+
 #[test]
 fn finest_level_render_equals_the_in_core_render() {
     let dir = tempfile::tempdir().unwrap();
@@ -132,42 +164,15 @@ fn a_scaled_volume_keeps_its_value_map_out_of_core() {
     let text = ok(&["info", s(&isot)]);
     assert!(text.contains("physical = 2 · stored + -1024"), "{text}");
     // Physical isovalues render the same surfaces as the in-core file, bit for bit.
-    let mut depths = Vec::new();
-    for f in [&nii, &isot] {
-        let npy = dir
-            .path()
-            .join(format!("{}.npy", f.file_name().unwrap().to_string_lossy()));
-        let png = npy.with_extension("png");
-        ok(&[
-            "render",
-            s(f),
-            "--iso",
-            "500",
-            "--iso",
-            "1200:#4080ff:0.5",
-            "--orbit",
-            "35,25",
-            "--size",
-            "48x40",
-            "-o",
-            s(&png),
-            "--depth-out",
-            s(&npy),
-        ]);
-        depths.push(
-            isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap())
-                .unwrap()
-                .1,
-        );
-    }
-    let hits = depths[0].iter().filter(|d| d.is_finite()).count();
-    assert!(hits > 100, "{hits}");
-    for (k, (x, y)) in depths[0].iter().zip(&depths[1]).enumerate() {
-        assert!(
-            x.to_bits() == y.to_bits(),
-            "pixel {k}: in-core {x}, out-of-core {y}"
-        );
-    }
+    let args = [
+        "--iso",
+        "500",
+        "--iso",
+        "1200:#4080ff:0.5",
+        "--orbit",
+        "35,25",
+    ];
+    assert_same_depths(dir.path(), [&nii, &isot], &args, "48x40", 100);
 }
 
 #[test]
@@ -302,36 +307,13 @@ fn an_anisotropic_ct_is_cut_as_the_in_core_tree_is_split() {
     let index = volume_core::ooc::TreeletLayout::new(layout.dims(), 4).unwrap();
     assert_ne!(layout.split_axes(), index.split_axes());
     // Bone and skin render the in-core depths, bit for bit.
-    let mut depths = Vec::new();
-    for f in [&ct, &isot] {
-        let npy = dir
-            .path()
-            .join(format!("{}.npy", f.file_name().unwrap().to_string_lossy()));
-        ok(&[
-            "render",
-            s(f),
-            "--iso",
-            "300",
-            "--iso",
-            "-500:#4080ff:0.5",
-            "--orbit",
-            "30,45",
-            "--size",
-            "64x48",
-            "-o",
-            s(&npy.with_extension("png")),
-            "--depth-out",
-            s(&npy),
-        ]);
-        let read = isoscope::cli::npy::read_f32_2d(std::fs::File::open(&npy).unwrap());
-        depths.push(read.unwrap().1);
-    }
-    let hits = depths[0].iter().filter(|d| d.is_finite()).count();
-    assert!(hits > 500, "{hits}");
-    for (k, (x, y)) in depths[0].iter().zip(&depths[1]).enumerate() {
-        assert!(
-            x.to_bits() == y.to_bits(),
-            "pixel {k}: in-core {x}, out-of-core {y}"
-        );
-    }
+    let args = [
+        "--iso",
+        "300",
+        "--iso",
+        "-500:#4080ff:0.5",
+        "--orbit",
+        "30,45",
+    ];
+    assert_same_depths(dir.path(), [&ct, &isot], &args, "64x48", 500);
 }
