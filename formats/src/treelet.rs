@@ -8,8 +8,9 @@
 //!   table offset, and a CRC32 of the header itself;
 //! - data pages: each treelet level in turn (coarsest first), starting on a page boundary,
 //!   treelets in index order in fixed-size *slots* (`u32` length + the record); several
-//!   slots per page when they fit, otherwise each slot takes whole pages. A treelet's
-//!   position is arithmetic on its id (64-bit);
+//!   slots per page when they fit, otherwise slots follow one another across page
+//!   boundaries (before version 3, each took whole pages). A treelet's position is
+//!   arithmetic on its id (64-bit);
 //! - the CRC32 of every data page.
 //!
 //! [`write_isot`] builds into a temporary file next to the output and renames it when
@@ -89,9 +90,11 @@ pub fn plan_levels(meta: &OocMeta, version: u32) -> Vec<LevelPlan> {
             } else if packed {
                 // A slot just over a page (a CT's anisotropic treelet with its border and
                 // node ranges) would otherwise waste nearly half of its second page.
-                (treelet_count * slot_bytes).div_ceil(PAGE)
+                // Saturating: a header's dims at the limits give sizes past u64, which the
+                // file length check then refuses.
+                treelet_count.saturating_mul(slot_bytes).div_ceil(PAGE)
             } else {
-                treelet_count * slot_bytes.div_ceil(PAGE)
+                treelet_count.saturating_mul(slot_bytes.div_ceil(PAGE))
             };
             let p = LevelPlan {
                 first_page: page,
@@ -101,7 +104,7 @@ pub fn plan_levels(meta: &OocMeta, version: u32) -> Vec<LevelPlan> {
                 treelet_count,
                 packed,
             };
-            page += page_count;
+            page = page.saturating_add(page_count);
             p
         })
         .collect()
