@@ -47,8 +47,9 @@
 //! shaded hit and nothing during traversal.
 //!
 //! Statistics and shadows are compile-time parameters, so when they are off their code is not
-//! in the loop at all. Per-tile buffers live in a per-thread scratch that is reused: nothing
-//! is allocated per ray or per tile.
+//! in the loop at all. Per-tile buffers live in a per-thread scratch kept from frame to
+//! frame: nothing is allocated per ray or per tile, and the buffers are sized once per
+//! thread (a scratch per rayon job was made and sized about 12 times a frame with 2 threads).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -432,6 +433,19 @@ impl Scratch {
     }
 }
 
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+/// Runs `f` with this thread's scratch, kept from band to band and frame to frame; a
+/// fresh one if it is in use (a render started from inside a band).
+fn with_scratch<R>(f: impl FnOnce(&mut Scratch) -> R) -> R {
+    SCRATCH.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut sc) => f(&mut sc),
+        Err(_) => f(&mut Scratch::default()),
+    })
+}
+
 /// `(dx, dy)` of the `TILE × TILE` samples of a tile in Morton order.
 fn morton_order() -> Vec<[u32; 2]> {
     let mut v: Vec<[u32; 2]> = (0..TILE * TILE)
@@ -560,20 +574,22 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
             .par_chunks_mut(band_rows * row_len * 4)
             .zip(frame.depth.par_chunks_mut(band_rows * row_len))
             .enumerate()
-            .map_init(Scratch::default, |sc, (index, (rgba8, depth))| {
-                let mut band = Band {
-                    index: tiles_y.start + index as u32,
-                    rgba8,
-                    depth,
-                };
-                let mut tally = Tally::<St>::new();
-                for tx in tiles_x.clone() {
-                    if cancel.load(Ordering::Relaxed) {
-                        return None;
+            .map(|(index, (rgba8, depth))| {
+                with_scratch(|sc| {
+                    let mut band = Band {
+                        index: tiles_y.start + index as u32,
+                        rgba8,
+                        depth,
+                    };
+                    let mut tally = Tally::<St>::new();
+                    for tx in tiles_x.clone() {
+                        if cancel.load(Ordering::Relaxed) {
+                            return None;
+                        }
+                        render_tile::<S, St, SHADOWS>(scene, &ctx, tx, &mut band, sc, &mut tally);
                     }
-                    render_tile::<S, St, SHADOWS>(scene, &ctx, tx, &mut band, sc, &mut tally);
-                }
-                Some(tally)
+                    Some(tally)
+                })
             })
             .reduce(
                 || Some(Tally::new()),
@@ -1776,6 +1792,15 @@ mod tests {
         let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         let mut reused = Frame::default();
         let (mut cases, mut hit_cases) = (0, 0);
+        // One pool per thread count for all cases: each thread's scratch goes from frame to
+        // frame, through other sizes, scales, clips and projections.
+        let pools = [1, 3].map(|threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            (threads, pool)
+        });
         for (k, (w, h, scale)) in [(37, 29, 1), (70, 50, 3), (16, 33, 1), (101, 7, 16)]
             .into_iter()
             .enumerate()
@@ -1815,11 +1840,7 @@ mod tests {
                 };
                 let (rgba8, depth) = twin(&scene, &cam, &settings);
                 hit_cases += usize::from(depth.iter().any(|d| d.is_finite()));
-                for threads in [1, 3] {
-                    let pool = rayon::ThreadPoolBuilder::new()
-                        .num_threads(threads)
-                        .build()
-                        .unwrap();
+                for (threads, pool) in &pools {
                     let f = pool.install(|| render(&scene, &cam, &settings, &go()).unwrap());
                     assert_eq!(f.rgba8, rgba8, "case {k}, {threads} threads");
                     assert_eq!(bits(&f.depth), bits(&depth), "case {k}, {threads} threads");
@@ -1873,6 +1894,105 @@ mod tests {
             assert_eq!(bits(&f.depth), bits(&frames[0].depth));
             assert_eq!((f.counts, f.rays), (frames[0].counts, frames[0].rays));
         }
+    }
+
+    /// A scene that renders a small frame of its own while the outer frame's bands hold
+    /// their threads' scratch (as a scene calling the renderer, or a band stealing another
+    /// band's job, would): the inner render takes a fresh scratch, and both frames are the
+    /// ones rendered alone.
+    struct RendersInside {
+        scene: SphereScene,
+        inner: (Camera, RenderSettings),
+        inner_alone: Frame,
+        inner_renders: std::sync::atomic::AtomicUsize,
+    }
+
+    impl IsoScene for RendersInside {
+        type Isovalues = Vec<f32>;
+
+        fn prepare(&self, isovalues: &[f32]) -> Vec<f32> {
+            self.scene.prepare(isovalues)
+        }
+
+        fn world_bounds(&self) -> Aabb {
+            self.scene.world_bounds()
+        }
+
+        fn live_boxes(&self, isovalues: &Vec<f32>, out: &mut Vec<Aabb>) {
+            self.scene.live_boxes(isovalues, out);
+        }
+
+        fn first_hit_prepared<S: Stats>(
+            &self,
+            ray: &Ray,
+            t_min: f32,
+            t_max: f32,
+            isovalues: &Vec<f32>,
+            stats: &mut S,
+        ) -> Option<Hit> {
+            self.scene
+                .first_hit_prepared(ray, t_min, t_max, isovalues, stats)
+        }
+
+        fn first_hit_packet_prepared<S: Stats>(
+            &self,
+            rays: &[Ray],
+            t_min: &[f32],
+            t_max: &[f32],
+            isovalues: &Vec<f32>,
+            out: &mut [Option<Hit>],
+            stats: &mut S,
+        ) {
+            let (cam, settings) = &self.inner;
+            let f = render(&self.scene, cam, settings, &go()).unwrap();
+            assert_eq!(f.rgba8, self.inner_alone.rgba8);
+            self.inner_renders.fetch_add(1, Ordering::Relaxed);
+            for (i, ray) in rays.iter().enumerate() {
+                out[i] = self.first_hit_prepared(ray, t_min[i], t_max[i], isovalues, stats);
+            }
+        }
+    }
+
+    #[test]
+    fn a_render_inside_a_band_gets_its_own_scratch() {
+        let scene = SphereScene {
+            spheres: vec![(Vec3::ZERO, 1.0), (Vec3::new(0.9, 0.3, 0.2), 0.6)],
+            bounds: cube(2.5),
+        };
+        let settings = |w, h, iso| RenderSettings {
+            width: w,
+            height: h,
+            surfaces: vec![Surface::new(iso, [0.9, 0.7, 0.1])],
+            ..RenderSettings::default()
+        };
+        let inner = (
+            Camera::orbit(&cube(2.5), 80.0, -10.0, 40.0),
+            settings(19, 17, 0.1),
+        );
+        let inner_alone = render(&scene, &inner.0, &inner.1, &go()).unwrap();
+        assert!(inner_alone.depth.iter().any(|d| d.is_finite()));
+        let outer = RendersInside {
+            scene: scene.clone(),
+            inner,
+            inner_alone,
+            inner_renders: 0.into(),
+        };
+        let (cam, s) = (
+            Camera::orbit(&cube(2.5), 30.0, 20.0, 40.0),
+            settings(40, 36, 0.2),
+        );
+        let (rgba8, depth) = twin(&scene, &cam, &s);
+        for threads in [1, 2] {
+            let f = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| render(&outer, &cam, &s, &go()).unwrap());
+            assert_eq!(f.rgba8, rgba8, "{threads} threads");
+            let bits = |d: &[f32]| d.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&f.depth), bits(&depth), "{threads} threads");
+        }
+        assert!(outer.inner_renders.load(Ordering::Relaxed) >= 2);
     }
 
     /// The sphere scene gives one live box per shell, so the coverage mask is on in these
