@@ -54,7 +54,7 @@
 
 use std::cell::RefCell;
 
-use glam::{Vec3, Vec4};
+use glam::{BVec3A, Vec3, Vec3A, Vec4};
 use wide::f32x8;
 
 use super::bvh::{BvhNode, MAX_DEPTH, TetBvh};
@@ -376,9 +376,34 @@ impl Frustum {
         f
     }
 
-    /// True when no ray of the packet can meet the box `[lo, hi]` within its range.
+    /// True when no ray of the packet can meet the box `[lo, hi]` within its range: the
+    /// three axes of [`Frustum::misses_by_axis`] side by side in SIMD lanes, the same
+    /// products, minima and maxima per axis (no NaN arises on an axis that is tested: its
+    /// reciprocals are finite and of one sign), so the same answer (tested).
     #[inline]
     fn misses(&self, lo: Vec3, hi: Vec3) -> bool {
+        let (lo, hi) = (Vec3A::from(lo), Vec3A::from(hi));
+        let (i0, i1) = (Vec3A::from(self.imin), Vec3A::from(self.imax));
+        let (omin, omax) = (Vec3A::from(self.omin), Vec3A::from(self.omax));
+        let pos = i0.cmpgt(Vec3A::ZERO);
+        let near = Vec3A::select(pos, lo, hi);
+        let far = Vec3A::select(pos, hi, lo);
+        let (x0, x1) = (near - omax, near - omin);
+        let tn = (x0 * i0).min(x0 * i1).min(x1 * i0).min(x1 * i1);
+        let (y0, y1) = (far - omax, far - omin);
+        let tf = (y0 * i0).max(y0 * i1).max(y1 * i0).max(y1 * i1);
+        let tested = BVec3A::new(self.axis[0], self.axis[1], self.axis[2]);
+        let tn = Vec3A::select(tested, tn, Vec3A::NEG_INFINITY);
+        let tf = Vec3A::select(tested, tf, Vec3A::INFINITY);
+        let enter = self.t0.max(tn.max_element());
+        let exit = self.t1.min(tf.min_element());
+        // Margin for rounding (the products above are rounded like the per-ray slab test).
+        enter - exit > 1e-5 * enter.abs().max(exit.abs()) + 1e-30
+    }
+
+    /// [`Frustum::misses`] one axis at a time (its twin in the tests).
+    #[cfg(test)]
+    fn misses_by_axis(&self, lo: Vec3, hi: Vec3) -> bool {
         let mut enter = self.t0;
         let mut exit = self.t1;
         for a in 0..3 {
@@ -1321,6 +1346,11 @@ mod tests {
                 };
                 let m = gs.hits(lo, hi, wanted);
                 for (g, fr) in groups.iter().enumerate() {
+                    assert_eq!(fr.misses(lo, hi), fr.misses_by_axis(lo, hi));
+                    // An axis left untested (a zero or mixed-sign direction component).
+                    let mut open = *fr;
+                    open.axis[k % 3] = false;
+                    assert_eq!(open.misses(lo, hi), open.misses_by_axis(lo, hi));
                     let want = !fr.misses(lo, hi) && wanted >> g & 1 == 1;
                     assert_eq!(m >> g & 1 == 1, want, "trial {trial} group {g}");
                     if want {
