@@ -196,6 +196,11 @@ fn tri(a: V8, b: V8, c: V8) -> (f32x8, u32) {
     let z = f32x8::ZERO;
     let neg = (u.simd_lt(z) | v.simd_lt(z) | w.simd_lt(z)).to_bitmask();
     let pos = (u.simd_gt(z) | v.simd_gt(z) | w.simd_gt(z)).to_bitmask();
+    if (neg & pos) & 0xff == 0xff {
+        // Every lane passes beside the triangle (most calls: a polygon is about a pixel):
+        // no lane's distance is read, so skip the division.
+        return (z, 0);
+    }
     let det = u + v + w;
     let bad_det = (det.simd_eq(z).to_bitmask()) | !det.is_finite().to_bitmask();
     let t = (u * a.z + v * b.z + w * c.z) / det;
@@ -313,11 +318,12 @@ mod tests {
     }
 
     /// Polygons of random tets and of an integer tet (exact zero edge functions), rays from
-    /// one origin through random points, vertices and edge midpoints.
+    /// one origin through random points, vertices and edge midpoints; and blocks whose
+    /// rays all pass beside the polygon (the early out of `tri`).
     #[test]
     fn poly8_equals_the_scalar_isopolygon_test_lane_by_lane() {
         let mut rng = Rng::new(11);
-        let (mut hits, mut uniform) = (0, 0);
+        let (mut hits, mut uniform, mut all_miss) = (0, 0, 0);
         for trial in 0..3000 {
             let integer = trial % 4 == 0;
             let v: [Vec4; 4] = if integer {
@@ -344,13 +350,20 @@ mod tests {
             } else {
                 rng.vec3(-1.0, 1.0) + Vec3::new(0.0, 0.0, -5.0)
             };
+            // Every fifth random polygon: all rays aimed beside it.
+            let beside = if !integer && trial % 5 == 3 {
+                Vec3::new(3.0, -3.0, 0.0)
+            } else {
+                Vec3::ZERO
+            };
             let rays: Vec<Ray> = (0..8)
                 .map(|i| {
-                    let target = match i % 4 {
-                        0 => poly.v[i / 4 % k],
-                        1 => (poly.v[i % k] + poly.v[(i + 1) % k]) * 0.5,
-                        _ => poly.v[0] + rng.vec3(-0.5, 0.5),
-                    };
+                    let target = beside
+                        + match i % 4 {
+                            0 => poly.v[i / 4 % k],
+                            1 => (poly.v[i % k] + poly.v[(i + 1) % k]) * 0.5,
+                            _ => poly.v[0] + rng.vec3(-0.5, 0.5),
+                        };
                     if integer && i == 7 {
                         // Axis-aligned ray exactly through a vertex.
                         let p = poly.v[trial / 4 % k];
@@ -369,6 +382,7 @@ mod tests {
             }
             uniform += 1;
             let (t, m) = poly8(&b, &poly, t1v);
+            all_miss += usize::from(beside != Vec3::ZERO && m == 0);
             let t = t.to_array();
             for l in 0..8 {
                 let want = mt::intersect(&mt::RaySpace::new(rays[l].origin, rays[l].dir), &poly)
@@ -381,8 +395,8 @@ mod tests {
             }
         }
         assert!(
-            uniform > 1000 && hits > 3000,
-            "{uniform} blocks, {hits} hits"
+            uniform > 1000 && hits > 3000 && all_miss > 200,
+            "{uniform} blocks, {hits} hits, {all_miss} blocks beside"
         );
     }
 }

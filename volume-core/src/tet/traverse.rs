@@ -238,25 +238,27 @@ pub(crate) fn slab(n: &BvhNode, ray: &Ray, t0: f32, t1: f32) -> bool {
     near.max_element().max(t0) <= far.min_element().min(t1)
 }
 
-/// Interval bounds of a packet for the conservative frustum test.
+/// Interval bounds of a packet for the conservative frustum test, in SIMD lanes (`Vec3A`)
+/// as [`Frustum::misses`] reads them.
 #[derive(Clone, Copy)]
 struct Frustum {
-    omin: Vec3,
-    omax: Vec3,
-    imin: Vec3,
-    imax: Vec3,
-    axis: [bool; 3],
+    omin: Vec3A,
+    omax: Vec3A,
+    imin: Vec3A,
+    imax: Vec3A,
+    /// The axes tested: finite reciprocals of one sign.
+    axis: BVec3A,
     t0: f32,
     t1: f32,
 }
 
 impl Frustum {
     const NONE: Frustum = Frustum {
-        omin: Vec3::ZERO,
-        omax: Vec3::ZERO,
-        imin: Vec3::ZERO,
-        imax: Vec3::ZERO,
-        axis: [false; 3],
+        omin: Vec3A::ZERO,
+        omax: Vec3A::ZERO,
+        imin: Vec3A::ZERO,
+        imax: Vec3A::ZERO,
+        axis: BVec3A::FALSE,
         t0: f32::NEG_INFINITY,
         t1: f32::INFINITY,
     };
@@ -264,36 +266,38 @@ impl Frustum {
     #[cfg(test)]
     fn new(rays: &[Ray], t_min: &[f32], t_max: &[f32]) -> Self {
         let mut f = Frustum {
-            omin: Vec3::INFINITY,
-            omax: Vec3::NEG_INFINITY,
-            imin: Vec3::INFINITY,
-            imax: Vec3::NEG_INFINITY,
-            axis: [true; 3],
+            omin: Vec3A::INFINITY,
+            omax: Vec3A::NEG_INFINITY,
+            imin: Vec3A::INFINITY,
+            imax: Vec3A::NEG_INFINITY,
+            axis: BVec3A::TRUE,
             t0: f32::INFINITY,
             t1: f32::NEG_INFINITY,
         };
+        let mut axis = [true; 3];
         for (i, r) in rays.iter().enumerate() {
-            f.omin = f.omin.min(r.origin);
-            f.omax = f.omax.max(r.origin);
-            f.imin = f.imin.min(r.inv_dir);
-            f.imax = f.imax.max(r.inv_dir);
+            f.omin = f.omin.min(r.origin.into());
+            f.omax = f.omax.max(r.origin.into());
+            f.imin = f.imin.min(r.inv_dir.into());
+            f.imax = f.imax.max(r.inv_dir.into());
             f.t0 = f.t0.min(t_min[i]);
             f.t1 = f.t1.max(t_max[i]);
             if !r.origin.is_finite() {
-                f.axis = [false; 3];
+                axis = [false; 3];
             }
             for a in 0..3 {
                 if !r.inv_dir[a].is_finite() || r.dir[a] == 0.0 {
-                    f.axis[a] = false;
+                    axis[a] = false;
                 }
             }
         }
         for a in 0..3 {
             // Mixed signs: the reciprocal interval would span infinity.
-            if f.axis[a] && f.imin[a] < 0.0 && f.imax[a] > 0.0 {
-                f.axis[a] = false;
+            if axis[a] && f.imin[a] < 0.0 && f.imax[a] > 0.0 {
+                axis[a] = false;
             }
         }
+        f.axis = BVec3A::from(axis);
         // NaN ranges: never cull.
         if f.t0.is_nan() || f.t1.is_nan() {
             f.t0 = f32::NEG_INFINITY;
@@ -339,19 +343,19 @@ impl Frustum {
             .fold(f32x8::NEG_INFINITY, f32x8::max)
             .to_array();
         let mut f = Frustum {
-            omin: Vec3::new(lo[0], lo[1], lo[2]),
-            omax: Vec3::new(hi[0], hi[1], hi[2]),
-            imin: Vec3::new(lo[3], lo[4], lo[5]),
-            imax: Vec3::new(hi[3], hi[4], hi[5]),
-            axis: [true; 3],
+            omin: Vec3A::new(lo[0], lo[1], lo[2]),
+            omax: Vec3A::new(hi[0], hi[1], hi[2]),
+            imin: Vec3A::new(lo[3], lo[4], lo[5]),
+            imax: Vec3A::new(hi[3], hi[4], hi[5]),
+            axis: BVec3A::FALSE,
             t0: lo[6],
             t1: hi[6],
         };
-        for (a, bad) in bad_i.into_iter().enumerate() {
-            // Zero direction components have infinite reciprocals; mixed signs would make
-            // the reciprocal interval span infinity.
-            f.axis[a] = bad_o == 0 && bad == 0 && !(f.imin[a] < 0.0 && f.imax[a] > 0.0);
-        }
+        // Zero direction components have infinite reciprocals; mixed signs would make the
+        // reciprocal interval span infinity.
+        f.axis = BVec3A::from(std::array::from_fn::<bool, 3, _>(|a| {
+            bad_o == 0 && bad_i[a] == 0 && !(f.imin[a] < 0.0 && f.imax[a] > 0.0)
+        }));
         if f.t0.is_nan() || f.t1.is_nan() {
             f.t0 = f32::NEG_INFINITY;
             f.t1 = f32::INFINITY;
@@ -369,9 +373,8 @@ impl Frustum {
             f.imax = f.imax.max(g.imax);
             f.t0 = f.t0.min(g.t0);
             f.t1 = f.t1.max(g.t1);
-            for a in 0..3 {
-                f.axis[a] &= g.axis[a] && !(f.imin[a] < 0.0 && f.imax[a] > 0.0);
-            }
+            let mixed = f.imin.cmplt(Vec3A::ZERO) & f.imax.cmpgt(Vec3A::ZERO);
+            f.axis = f.axis & g.axis & !mixed;
         }
         f
     }
@@ -381,10 +384,9 @@ impl Frustum {
     /// products, minima and maxima per axis (no NaN arises on an axis that is tested: its
     /// reciprocals are finite and of one sign), so the same answer (tested).
     #[inline]
-    fn misses(&self, lo: Vec3, hi: Vec3) -> bool {
-        let (lo, hi) = (Vec3A::from(lo), Vec3A::from(hi));
-        let (i0, i1) = (Vec3A::from(self.imin), Vec3A::from(self.imax));
-        let (omin, omax) = (Vec3A::from(self.omin), Vec3A::from(self.omax));
+    fn misses(&self, lo: Vec3A, hi: Vec3A) -> bool {
+        let (i0, i1) = (self.imin, self.imax);
+        let (omin, omax) = (self.omin, self.omax);
         let pos = i0.cmpgt(Vec3A::ZERO);
         let near = Vec3A::select(pos, lo, hi);
         let far = Vec3A::select(pos, hi, lo);
@@ -392,9 +394,8 @@ impl Frustum {
         let tn = (x0 * i0).min(x0 * i1).min(x1 * i0).min(x1 * i1);
         let (y0, y1) = (far - omax, far - omin);
         let tf = (y0 * i0).max(y0 * i1).max(y1 * i0).max(y1 * i1);
-        let tested = BVec3A::new(self.axis[0], self.axis[1], self.axis[2]);
-        let tn = Vec3A::select(tested, tn, Vec3A::NEG_INFINITY);
-        let tf = Vec3A::select(tested, tf, Vec3A::INFINITY);
+        let tn = Vec3A::select(self.axis, tn, Vec3A::NEG_INFINITY);
+        let tf = Vec3A::select(self.axis, tf, Vec3A::INFINITY);
         let enter = self.t0.max(tn.max_element());
         let exit = self.t1.min(tf.min_element());
         // Margin for rounding (the products above are rounded like the per-ray slab test).
@@ -403,11 +404,11 @@ impl Frustum {
 
     /// [`Frustum::misses`] one axis at a time (its twin in the tests).
     #[cfg(test)]
-    fn misses_by_axis(&self, lo: Vec3, hi: Vec3) -> bool {
+    fn misses_by_axis(&self, lo: Vec3A, hi: Vec3A) -> bool {
         let mut enter = self.t0;
         let mut exit = self.t1;
         for a in 0..3 {
-            if !self.axis[a] {
+            if !self.axis.test(a) {
                 continue;
             }
             let (near, far) = if self.imin[a] > 0.0 {
@@ -473,7 +474,7 @@ impl GroupSet {
                 r[3 + a][g] = f.omax[a];
                 r[6 + a][g] = f.imin[a];
                 r[9 + a][g] = f.imax[a];
-                r[12 + a][g] = f32::from_bits(if f.axis[a] { u32::MAX } else { 0 });
+                r[12 + a][g] = f32::from_bits(if f.axis.test(a) { u32::MAX } else { 0 });
             }
             r[15][g] = f.t0;
             r[16][g] = f.t1;
@@ -504,7 +505,7 @@ impl GroupSet {
     /// Bit `g` set for the groups in `want` that may meet the box `[lo, hi]` (`!misses`,
     /// conservative). Halves (groups 0–7, 8–15) without a wanted group are skipped.
     #[inline]
-    fn hits(&self, lo: Vec3, hi: Vec3, want: u32) -> u32 {
+    fn hits(&self, lo: Vec3A, hi: Vec3A, want: u32) -> u32 {
         let want = want & self.valid;
         let mut m = 0;
         for h in 0..2 {
@@ -527,7 +528,7 @@ impl GroupSet {
     /// `near - omin` are equal, so two of the four products per bound are dropped: the
     /// minimum and maximum are the same values and the test the same.
     #[inline]
-    fn half_misses<const COMMON: bool>(&self, h: usize, lo: Vec3, hi: Vec3) -> u32 {
+    fn half_misses<const COMMON: bool>(&self, h: usize, lo: Vec3A, hi: Vec3A) -> u32 {
         let zero = f32x8::ZERO;
         let mut enter = self.t0[h];
         let mut exit = self.t1[h];
@@ -954,7 +955,7 @@ impl TetView<'_> {
         }
         let mut fr = Frustum::union(&groups[..ng]);
         let root = self.bvh.root();
-        if fr.misses(root.lo.truncate(), root.hi.truncate()) {
+        if fr.misses(Vec3A::from_vec4(root.lo), Vec3A::from_vec4(root.hi)) {
             return;
         }
         let gs: &mut GroupSet = gs;
@@ -978,7 +979,7 @@ impl TetView<'_> {
                     if !slab(n, &rays[first], t_min[first], bf) {
                         // Interval frustum test of the whole packet.
                         stats.box_test(1);
-                        let (lo, hi) = (n.lo.truncate(), n.hi.truncate());
+                        let (lo, hi) = (Vec3A::from_vec4(n.lo), Vec3A::from_vec4(n.hi));
                         if fr.misses(lo, hi) {
                             break 'visit;
                         }
@@ -1117,6 +1118,7 @@ impl TetView<'_> {
         let from_group = gs.valid & (!0u32 << (first / GROUP));
         self.leaf_polys(n, iso, stats, |ti, s, v, poly, stats| {
             let (plo, phi) = poly.bounds();
+            let (plo, phi) = (Vec3A::from(plo), Vec3A::from(phi));
             if fr.misses(plo, phi) {
                 return;
             }
@@ -1294,7 +1296,7 @@ mod tests {
                 "trial {trial}"
             );
             if trial % 3 == 0 {
-                assert!(!b.axis[1]);
+                assert!(!b.axis.test(1));
             }
         }
     }
@@ -1336,8 +1338,8 @@ mod tests {
             let gs = GroupSet::new(&groups);
             assert_eq!(gs.common_origin[0], trial % 2 == 0, "trial {trial}");
             for k in 0..20 {
-                let lo = Vec3::new(3.0 * f(), 3.0 * f(), 4.0 * f());
-                let hi = lo + Vec3::new(0.2 * (f() + 1.0), 0.2 * (f() + 1.0), 0.2 * (f() + 1.0));
+                let lo = Vec3A::new(3.0 * f(), 3.0 * f(), 4.0 * f());
+                let hi = lo + Vec3A::new(0.2 * (f() + 1.0), 0.2 * (f() + 1.0), 0.2 * (f() + 1.0));
                 // Every other box asks for a part of the groups only.
                 let wanted = if k % 2 == 0 {
                     u32::MAX
@@ -1349,7 +1351,7 @@ mod tests {
                     assert_eq!(fr.misses(lo, hi), fr.misses_by_axis(lo, hi));
                     // An axis left untested (a zero or mixed-sign direction component).
                     let mut open = *fr;
-                    open.axis[k % 3] = false;
+                    open.axis.set(k % 3, false);
                     assert_eq!(open.misses(lo, hi), open.misses_by_axis(lo, hi));
                     let want = !fr.misses(lo, hi) && wanted >> g & 1 == 1;
                     assert_eq!(m >> g & 1 == 1, want, "trial {trial} group {g}");
