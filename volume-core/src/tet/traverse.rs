@@ -285,16 +285,16 @@ impl Frustum {
             if !r.origin.is_finite() {
                 axis = [false; 3];
             }
-            for a in 0..3 {
+            for (a, used) in axis.iter_mut().enumerate() {
                 if !r.inv_dir[a].is_finite() || r.dir[a] == 0.0 {
-                    axis[a] = false;
+                    *used = false;
                 }
             }
         }
-        for a in 0..3 {
+        for (a, used) in axis.iter_mut().enumerate() {
             // Mixed signs: the reciprocal interval would span infinity.
-            if axis[a] && f.imin[a] < 0.0 && f.imax[a] > 0.0 {
-                axis[a] = false;
+            if *used && f.imin[a] < 0.0 && f.imax[a] > 0.0 {
+                *used = false;
             }
         }
         f.axis = BVec3A::from(axis);
