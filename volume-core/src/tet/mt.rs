@@ -169,7 +169,13 @@ pub fn case_index(v: &[Vec4; 4], c: f32) -> usize {
 /// for an empty case. Callers skip NaN-valued tets before (their case is arbitrary).
 #[inline]
 pub fn extract(v: &[Vec4; 4], ids: &[u32; 4], c: f32) -> Option<IsoPoly> {
-    let case = &CASES[case_index(v, c)];
+    extract_case(v, ids, c, case_index(v, c))
+}
+
+/// [`extract`] for a tet whose [`case_index`] the caller already has.
+#[inline]
+pub fn extract_case(v: &[Vec4; 4], ids: &[u32; 4], c: f32, case: usize) -> Option<IsoPoly> {
+    let case = &CASES[case];
     if case.count == 0 {
         return None;
     }

@@ -163,10 +163,16 @@ fn transform(b: &RayBlock, p: Vec3) -> V8 {
     }
 }
 
-/// Edge function `a × b` per lane, exact in sign (`f64` for lanes that round to zero).
+/// Edge function `a × b` per lane in `f32` (zero lanes are fixed by [`exact_zeros`]).
 #[inline]
 fn edge(a: V8, b: V8) -> f32x8 {
-    let e = a.x * b.y - a.y * b.x;
+    a.x * b.y - a.y * b.x
+}
+
+/// The edge function `e = a × b` exact in sign: lanes that round to zero recomputed in
+/// `f64`.
+#[inline]
+fn exact_zeros(e: f32x8, a: V8, b: V8) -> f32x8 {
     let zero = e.simd_eq(f32x8::ZERO).to_bitmask();
     if zero == 0 {
         return e;
@@ -190,10 +196,16 @@ fn edge(a: V8, b: V8) -> f32x8 {
 /// Watertight ray–triangle test per lane: ray parameters and the lanes that hit.
 #[inline]
 fn tri(a: V8, b: V8, c: V8) -> (f32x8, u32) {
-    let u = edge(b, c);
-    let v = edge(c, a);
-    let w = edge(a, b);
+    let (mut u, mut v, mut w) = (edge(b, c), edge(c, a), edge(a, b));
     let z = f32x8::ZERO;
+    // One test for the three edges' rare zero lanes.
+    if (u.simd_eq(z) | v.simd_eq(z) | w.simd_eq(z)).any() {
+        (u, v, w) = (
+            exact_zeros(u, b, c),
+            exact_zeros(v, c, a),
+            exact_zeros(w, a, b),
+        );
+    }
     let neg = (u.simd_lt(z) | v.simd_lt(z) | w.simd_lt(z)).to_bitmask();
     let pos = (u.simd_gt(z) | v.simd_gt(z) | w.simd_gt(z)).to_bitmask();
     if (neg & pos) & 0xff == 0xff {

@@ -600,14 +600,15 @@ impl TetView<'_> {
             if v.iter().any(|p| p.w.is_nan()) {
                 continue;
             }
-            let lo = v[0].w.min(v[1].w).min(v[2].w.min(v[3].w));
-            let hi = v[0].w.max(v[1].w).max(v[2].w.max(v[3].w));
             for (s, &c) in iso.iter().enumerate() {
-                if !(lo <= c && c <= hi) {
+                // Cases 0 and 15 (no corner above `c`, or all) have no polygon: the
+                // isorange test without the tet's minimum and maximum.
+                let case = mt::case_index(&v, c);
+                if case == 0 || case == 15 {
                     continue;
                 }
                 stats.extraction();
-                if let Some(poly) = mt::extract(&v, ids, c) {
+                if let Some(poly) = mt::extract_case(&v, ids, c, case) {
                     f(ti, s as u32, &v, &poly, stats);
                 }
             }
