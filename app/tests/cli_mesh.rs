@@ -257,11 +257,11 @@ fn bench_json_for_meshes_compares_packets() {
     }
     let m = &v["mesh"];
     assert_eq!(m["tets"].as_u64().unwrap() as usize, 6 * ball_cells(16));
-    assert_eq!(m["builder"], "bih");
+    assert_eq!(m["builder"], "sah");
     assert_eq!(m["packet_side"], 16);
     // Packets test boxes for the whole packet at once: 2×2 needs more tests.
     assert!(m["box_test_ratio_2x2"].as_f64().unwrap() > 1.0, "{m}");
-    assert_eq!(m["other_builder"]["builder"], "sah");
+    assert_eq!(m["other_builder"]["builder"], "bih");
     assert!(v["build_seconds"].as_f64().unwrap() > 0.0);
     let sweep = &v["iso_sweep"];
     assert_eq!(sweep["frame_ms"].as_array().unwrap().len(), 3);

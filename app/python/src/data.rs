@@ -275,7 +275,7 @@ impl Mesh {
     /// A mesh from `points` (N×3), `tets` (M×4 point indices) and per-point scalar `fields`
     /// (name → N values); `field` is the one drawn (default: the first).
     #[new]
-    #[pyo3(signature = (points, tets, fields, field=None, bvh="bih", leaf_size=12, normals="faceted"))]
+    #[pyo3(signature = (points, tets, fields, field=None, bvh="sah", leaf_size=12, normals="faceted"))]
     fn new<'py>(
         py: Python<'py>,
         points: &Bound<'py, PyAny>,

@@ -131,7 +131,7 @@ impl OpenArgs {
 /// Flags for tetrahedral meshes (rejected for other files; `--field` is in [`OpenArgs`]).
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct MeshArgs {
-    /// Meshes: BVH builder, bih (spatial median, fast; default) or sah (binned SAH).
+    /// Meshes: BVH builder, sah (binned SAH; default) or bih (spatial median, builds faster).
     #[arg(long, value_name = "bih|sah", value_parser = parse_bvh, help_heading = "Tetrahedral meshes")]
     pub bvh: Option<BvhBuilder>,
     /// Meshes: most tets per BVH leaf, 1..=255 (default 12).

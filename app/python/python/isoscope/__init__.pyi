@@ -89,7 +89,7 @@ class Mesh(Data):
         tets: npt.ArrayLike,
         fields: Mapping[str, npt.ArrayLike],
         field: Optional[str] = None,
-        bvh: Literal["bih", "sah"] = "bih",
+        bvh: Literal["bih", "sah"] = "sah",
         leaf_size: int = 12,
         normals: Literal["faceted", "smooth"] = "faceted",
     ) -> None: ...
