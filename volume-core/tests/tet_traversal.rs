@@ -453,8 +453,12 @@ fn refit_equals_rebuild_for_scalars_and_positions() {
             .iter()
             .map(|p| (Vec3::from(*p) - centre).length() + rng.range_f32(-0.2, 0.2))
             .collect();
+        // Packets traced before and after the refit, with the same isovalues on this thread:
+        // the leaf cache must not serve the old state's polygons.
+        check_all(&mut scene, &rays[..100], &t_min[..100], &t_max[..100], &iso).unwrap();
         scene.refit_scalars(&values).unwrap();
         scene.validate().unwrap();
+        check_all(&mut scene, &rays[..100], &t_min[..100], &t_max[..100], &iso).unwrap();
         let fresh_mesh = TetMesh::new(
             mesh.points.clone(),
             mesh.tets.clone(),
@@ -475,6 +479,7 @@ fn refit_equals_rebuild_for_scalars_and_positions() {
             })
             .collect();
         let mut moved = scene.clone();
+        check_all(&mut moved, &rays[..100], &t_min[..100], &t_max[..100], &iso).unwrap();
         moved.refit_positions(&points).unwrap();
         moved.validate().unwrap();
         let moved_mesh = TetMesh::new(

@@ -48,6 +48,15 @@ pub struct TetScene {
     normal_rows: Vec<[Vec4; 3]>,
     packet: usize,
     bounds: Aabb,
+    /// Changes whenever the points, values or tets do (a new number from [`next_generation`]),
+    /// so the traversal's leaf cache never serves polygons of an earlier state.
+    generation: u64,
+}
+
+/// A number no scene state had before (process-wide).
+fn next_generation() -> u64 {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+    NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 fn check_points(points: &[[f32; 3]]) -> Result<(), TetError> {
@@ -120,6 +129,7 @@ impl TetScene {
             normal_rows: Vec::new(),
             packet: MAX_PACKET,
             bounds: Aabb::EMPTY,
+            generation: next_generation(),
         };
         scene.renumber_points();
         scene.update_bounds();
@@ -156,6 +166,7 @@ impl TetScene {
         }
         self.verts = verts;
         self.point_order = point_order;
+        self.generation = next_generation();
     }
 
     fn update_bounds(&mut self) {
@@ -189,6 +200,7 @@ impl TetScene {
             .zip(&self.point_order)
             .for_each(|(p, &i)| p.w = values[i as usize]);
         self.bvh.refit(&self.verts, &self.tets, true);
+        self.generation = next_generation();
         self.update_normals();
         Ok(())
     }
@@ -211,6 +223,7 @@ impl TetScene {
                 *p = Vec4::new(q[0], q[1], q[2], p.w);
             });
         self.bvh.refit(&self.verts, &self.tets, false);
+        self.generation = next_generation();
         self.update_bounds();
         self.update_normals();
         Ok(())
@@ -335,6 +348,7 @@ impl TetScene {
             verts: &self.verts,
             tets: &self.tets,
             bvh: &self.bvh,
+            generation: self.generation,
         }
     }
 

@@ -19,7 +19,9 @@
 //!    rays before it are known to miss the node and are skipped in the subtree.
 //! 5. **Leaves**: per tet, an isorange test per isovalue; the isopolygon is extracted on the
 //!    fly (§8.2.4), culled against the packet frustum by its bounds (§8.2.3), then tested
-//!    against rays `first..`.
+//!    against rays `first..`. A thread keeps the polygons and bounds of the leaves it
+//!    visited last (`leaf_cache`), which later packets of a tile, and its shadow packets,
+//!    read instead of extracting them again.
 //!
 //! Refinement: the packet is also split into sub-frusta of 16 consecutive rays (4×4 blocks
 //! of a Morton-ordered tile), held in SoA form so that one call tests a box against all 16
@@ -58,6 +60,7 @@ use glam::{BVec3A, Vec3, Vec3A, Vec4};
 use wide::f32x8;
 
 use super::bvh::{BvhNode, MAX_DEPTH, TetBvh};
+use super::leaf_cache::{LeafCache, LeafPoly};
 use super::mt::{self, IsoPoly, RaySpace};
 use super::simd::{LANES, RayBlock, poly8, slab8};
 use crate::math::{Ray, float::gamma_f32, prefetch};
@@ -572,6 +575,8 @@ pub(crate) struct TetView<'a> {
     pub verts: &'a [Vec4],
     pub tets: &'a [[u32; 4]],
     pub bvh: &'a TetBvh,
+    /// The scene state's number ([`super::TetScene`]), the leaf cache's key.
+    pub generation: u64,
 }
 
 impl TetView<'_> {
@@ -934,6 +939,7 @@ impl TetView<'_> {
             best,
             groups,
             gs,
+            leaves,
         } = sc;
         let blocks = &mut blocks[..nb];
         let best = &mut best[..nb];
@@ -961,6 +967,7 @@ impl TetView<'_> {
         }
         let gs: &mut GroupSet = gs;
         *gs = GroupSet::new(&groups[..ng]);
+        leaves.begin(self.generation, iso);
         let nodes = &self.bvh.nodes;
         let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
         let mut sp = 0;
@@ -1021,6 +1028,8 @@ impl TetView<'_> {
                     stats.leaf();
                     let hit_groups = self.leaf_large(
                         n,
+                        node,
+                        leaves,
                         rays,
                         t_min,
                         blocks,
@@ -1093,15 +1102,18 @@ impl TetView<'_> {
         true
     }
 
-    /// Leaf of the large-packet traversal: per tet an isorange test per isovalue, the
-    /// isopolygon extracted on the fly, culled against the packet frustum and then against
-    /// all sub-frusta at once (§8.2.3), then tested against the active rays 8 at a time.
+    /// Leaf of the large-packet traversal: the leaf's isopolygons (from this thread's leaf
+    /// cache, or extracted on the fly into it), each culled against the packet frustum and
+    /// then against all sub-frusta at once (§8.2.3), then tested against the active rays 8
+    /// at a time.
     /// Returns the groups (bit `g`) where some ray's range end was lowered (`hits`).
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn leaf_large<S: Stats, H: LaneHits>(
         &self,
         n: &BvhNode,
+        node: u32,
+        leaves: &mut LeafCache,
         rays: &[Ray],
         t_min: &[f32],
         blocks: &mut [RayBlock],
@@ -1117,9 +1129,8 @@ impl TetView<'_> {
         let len = rays.len();
         let mut hit_groups = 0u32;
         let from_group = gs.valid & (!0u32 << (first / GROUP));
-        self.leaf_polys(n, iso, stats, |ti, s, v, poly, stats| {
-            let (plo, phi) = poly.bounds();
-            let (plo, phi) = (Vec3A::from(plo), Vec3A::from(phi));
+        let mut test = |lp: &LeafPoly, stats: &mut S| {
+            let (plo, phi) = (lp.lo, lp.hi);
             if fr.misses(plo, phi) {
                 return;
             }
@@ -1127,13 +1138,17 @@ impl TetView<'_> {
             if from_group & !1 != 0 {
                 gm = gs.hits(plo, phi, gm);
             }
+            let (poly, s, ti) = (&lp.poly, lp.surface, lp.tet);
             let hit = |t: f32| RawHit {
                 t,
                 surface: s,
                 tet: ti,
             };
             // The faceted normal, computed only for hits the sink keeps.
-            let normal = || poly.oriented_normal(v, iso[s as usize]);
+            let normal = || {
+                let v = self.tets[ti as usize].map(|i| self.verts[i as usize]);
+                poly.oriented_normal(&v, iso[s as usize])
+            };
             while gm != 0 {
                 let g = gm.trailing_zeros() as usize;
                 gm &= gm - 1;
@@ -1188,7 +1203,28 @@ impl TetView<'_> {
                     i = e;
                 }
             }
+        };
+        // The leaf's polygons from the cache, or extracted into it (too many to cache:
+        // extracted and tested one by one).
+        let max_len = n.count as usize * iso.len();
+        let cached = leaves.leaf(node, max_len, |out| {
+            let mut k = 0;
+            self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
+                out[k] = LeafPoly::new(ti, s, *poly);
+                k += 1;
+            });
+            k
         });
+        match cached {
+            Some(polys) => {
+                for lp in polys {
+                    test(lp, stats);
+                }
+            }
+            None => self.leaf_polys(n, iso, stats, |ti, s, _, poly, stats| {
+                test(&LeafPoly::new(ti, s, *poly), stats);
+            }),
+        }
         hit_groups
     }
 }
@@ -1228,6 +1264,7 @@ pub(crate) struct PacketScratch {
     best: Box<[f32x8; MAX_BLOCKS]>,
     groups: Box<[Frustum; MAX_GROUPS]>,
     gs: Box<GroupSet>,
+    leaves: LeafCache,
 }
 
 impl PacketScratch {
@@ -1237,6 +1274,7 @@ impl PacketScratch {
             best: Box::new([f32x8::ZERO; MAX_BLOCKS]),
             groups: Box::new([Frustum::NONE; MAX_GROUPS]),
             gs: Box::new(GroupSet::NONE),
+            leaves: LeafCache::new(),
         }
     }
 }
