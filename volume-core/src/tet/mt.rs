@@ -145,6 +145,7 @@ impl IsoPoly {
         })
     }
 
+    #[inline]
     pub fn bounds(&self) -> (Vec3, Vec3) {
         let mut lo = self.v[0].min(self.v[1]).min(self.v[2]);
         let mut hi = self.v[0].max(self.v[1]).max(self.v[2]);

@@ -507,7 +507,7 @@ impl GroupSet {
 
     /// Bit `g` set for the groups in `want` that may meet the box `[lo, hi]` (`!misses`,
     /// conservative). Halves (groups 0–7, 8–15) without a wanted group are skipped.
-    #[inline]
+    #[inline(always)]
     fn hits(&self, lo: Vec3A, hi: Vec3A, want: u32) -> u32 {
         let want = want & self.valid;
         let mut m = 0;
