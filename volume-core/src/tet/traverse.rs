@@ -255,6 +255,13 @@ struct Frustum {
     t1: f32,
 }
 
+/// The axes whose reciprocal directions have both signs: their reciprocal interval would
+/// span infinity, so a frustum leaves them untested.
+#[inline]
+fn mixed_signs(imin: Vec3A, imax: Vec3A) -> BVec3A {
+    imin.cmplt(Vec3A::ZERO) & imax.cmpgt(Vec3A::ZERO)
+}
+
 impl Frustum {
     const NONE: Frustum = Frustum {
         omin: Vec3A::ZERO,
@@ -294,13 +301,7 @@ impl Frustum {
                 }
             }
         }
-        for (a, used) in axis.iter_mut().enumerate() {
-            // Mixed signs: the reciprocal interval would span infinity.
-            if *used && f.imin[a] < 0.0 && f.imax[a] > 0.0 {
-                *used = false;
-            }
-        }
-        f.axis = BVec3A::from(axis);
+        f.axis = BVec3A::from(axis) & !mixed_signs(f.imin, f.imax);
         // NaN ranges: never cull.
         if f.t0.is_nan() || f.t1.is_nan() {
             f.t0 = f32::NEG_INFINITY;
@@ -354,11 +355,10 @@ impl Frustum {
             t0: lo[6],
             t1: hi[6],
         };
-        // Zero direction components have infinite reciprocals; mixed signs would make the
-        // reciprocal interval span infinity.
+        // Zero direction components have infinite reciprocals.
         f.axis = BVec3A::from(std::array::from_fn::<bool, 3, _>(|a| {
-            bad_o == 0 && bad_i[a] == 0 && !(f.imin[a] < 0.0 && f.imax[a] > 0.0)
-        }));
+            bad_o == 0 && bad_i[a] == 0
+        })) & !mixed_signs(f.imin, f.imax);
         if f.t0.is_nan() || f.t1.is_nan() {
             f.t0 = f32::NEG_INFINITY;
             f.t1 = f32::INFINITY;
@@ -376,8 +376,7 @@ impl Frustum {
             f.imax = f.imax.max(g.imax);
             f.t0 = f.t0.min(g.t0);
             f.t1 = f.t1.max(g.t1);
-            let mixed = f.imin.cmplt(Vec3A::ZERO) & f.imax.cmpgt(Vec3A::ZERO);
-            f.axis = f.axis & g.axis & !mixed;
+            f.axis = f.axis & g.axis & !mixed_signs(f.imin, f.imax);
         }
         f
     }
