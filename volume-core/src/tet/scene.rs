@@ -384,14 +384,23 @@ impl TetScene {
     }
 
     fn to_hit(&self, ray: &Ray, h: &RawHit, isos: &TetIsovalues) -> Hit {
+        if !isos.normals {
+            return Self::distance_hit(ray, h);
+        }
         Hit {
             t: h.t,
             surface: h.surface,
-            normal: if isos.normals {
-                self.hit_normal(ray, h, &isos.values)
-            } else {
-                (-ray.dir).normalize_or(Vec3::Z)
-            },
+            normal: self.hit_normal(ray, h, &isos.values),
+            cell: h.tet,
+        }
+    }
+
+    /// A hit whose normal nobody reads (depth, shadows): the ray's reverse.
+    fn distance_hit(ray: &Ray, h: &RawHit) -> Hit {
+        Hit {
+            t: h.t,
+            surface: h.surface,
+            normal: (-ray.dir).normalize_or(Vec3::Z),
             cell: h.tet,
         }
     }
@@ -581,8 +590,8 @@ fn tet_gradient(verts: &[Vec4], t: &[u32; 4]) -> (DVec3, f64) {
 #[derive(Debug, Clone)]
 pub struct TetIsovalues {
     pub values: Vec<f32>,
-    /// False for depth-only frames ([`IsoScene::prepare_distances`]): packets take the
-    /// faceted normals their traversal finds anyway, single rays the ray's reverse.
+    /// False for depth-only frames ([`IsoScene::prepare_distances`]): hits get the ray's
+    /// reverse as their normal, and packets make no polygon normal.
     pub normals: bool,
 }
 
@@ -649,6 +658,37 @@ impl IsoScene for TetScene {
             .is_some()
     }
 
+    /// Shadow rays: the packets' first hits without any normal (a shadow ray only darkens
+    /// its pixel), as for a depth-only frame. Ending each ray at the first hit found
+    /// instead did not pay (docs/benchmarks.md, *Tried and not kept*).
+    fn occluded_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &TetIsovalues,
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        let mut hits = [None; MAX_PACKET];
+        for start in (0..rays.len()).step_by(MAX_PACKET) {
+            let end = (start + MAX_PACKET).min(rays.len());
+            let n = end - start;
+            self.first_hits_packet_with(
+                &rays[start..end],
+                &t_min[start..end],
+                &t_max[start..end],
+                isos,
+                false,
+                &mut hits[..n],
+                stats,
+            );
+            for (o, h) in out[start..end].iter_mut().zip(&hits[..n]) {
+                *o = h.is_some();
+            }
+        }
+    }
+
     /// Large packets collect every ray's layers in one traversal (`RayLayers`: its
     /// nearest hits up to the first opaque one) instead of a new packet from the root per
     /// layer; packets of at most 4 rays return first hits, as the trait's default does.
@@ -710,32 +750,63 @@ impl IsoScene for TetScene {
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
+        self.first_hits_packet_with(rays, t_min, t_max, isos, isos.normals, out, stats);
+    }
+}
+
+impl TetScene {
+    /// [`IsoScene::first_hit_packet_prepared`], with shading normals only when `normals`
+    /// (else each hit's normal is the ray's reverse, as for distance-only isovalues).
+    #[allow(clippy::too_many_arguments)]
+    fn first_hits_packet_with<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &TetIsovalues,
+        normals: bool,
+        out: &mut [Option<Hit>],
+        stats: &mut S,
+    ) {
         let isovalues = &isos.values;
         let mut raw = [None; MAX_PACKET];
-        if (self.normals == Normals::Faceted || !isos.normals) && self.packet > 1 {
-            // Faceted normals straight from the traversal (no second extraction per hit).
-            // Same packets as `first_hit_packet_raw` below.
+        let faceted = normals && self.normals == Normals::Faceted;
+        if (faceted || !normals) && self.packet > 1 {
+            // Faceted normals straight from the traversal (no second extraction per hit),
+            // or none at all for distances. Same packets as `first_hit_packet_raw` below.
             let mut normals = [Vec3::ZERO; MAX_PACKET];
             for chunk in (0..rays.len()).step_by(MAX_PACKET) {
                 let chunk_end = (chunk + MAX_PACKET).min(rays.len());
                 for start in (chunk..chunk_end).step_by(self.packet) {
                     let end = (start + self.packet).min(chunk_end);
                     let n = end - start;
-                    self.view().trace_packet_faceted(
-                        &rays[start..end],
-                        &t_min[start..end],
-                        &t_max[start..end],
-                        isovalues,
-                        &mut raw[..n],
-                        &mut normals[..n],
-                        stats,
-                    );
+                    let (r, t0, t1) = (&rays[start..end], &t_min[start..end], &t_max[start..end]);
+                    if faceted {
+                        self.view().trace_packet_faceted(
+                            r,
+                            t0,
+                            t1,
+                            isovalues,
+                            &mut raw[..n],
+                            &mut normals[..n],
+                            stats,
+                        );
+                    } else {
+                        self.view()
+                            .trace_packet(r, t0, t1, isovalues, &mut raw[..n], stats);
+                    }
                     for k in 0..n {
-                        out[start + k] = raw[k].map(|h| Hit {
-                            t: h.t,
-                            surface: h.surface,
-                            normal: normals[k],
-                            cell: h.tet,
+                        out[start + k] = raw[k].map(|h| {
+                            if faceted {
+                                Hit {
+                                    t: h.t,
+                                    surface: h.surface,
+                                    normal: normals[k],
+                                    cell: h.tet,
+                                }
+                            } else {
+                                Self::distance_hit(&r[k], &h)
+                            }
                         });
                     }
                 }
@@ -753,11 +824,17 @@ impl IsoScene for TetScene {
                 &mut raw[..n],
                 stats,
             );
-            if isos.normals {
+            if normals {
                 self.prefetch_normal_rows(raw[..n].iter().flatten());
             }
             for k in 0..n {
-                out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isos));
+                out[start + k] = raw[k].map(|h| {
+                    if normals {
+                        self.to_hit(&rays[start + k], &h, isos)
+                    } else {
+                        Self::distance_hit(&rays[start + k], &h)
+                    }
+                });
             }
         }
     }
@@ -881,6 +958,79 @@ mod tests {
             }
         }
         assert!(hits_seen > 800, "{hits_seen} hits");
+    }
+
+    /// Distances without normals (depth-only isovalues, shadow rays) find the hits that the
+    /// shaded packets find: the same `t`, surface and tet for every packet size, faceted and
+    /// smooth, and a shadow ray is occluded exactly when it has a first hit.
+    #[test]
+    fn distance_only_packets_find_the_shaded_packets_hits() {
+        let n = 9;
+        let mut scene = grid_scene(n, 23);
+        let c = n as f32 * 0.5;
+        let eye = Vec3::new(c - 2.0, c + 3.0, -9.0);
+        let rays: Vec<Ray> = (0..600)
+            .map(|i| {
+                let (x, y) = ((i % 24) as f32, (i / 24) as f32);
+                Ray::new(eye, (Vec3::new(x * 0.35, y * 0.35, c) - eye).normalize())
+            })
+            .collect();
+        let t_min = vec![0.0; rays.len()];
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| if i % 7 == 0 { 11.0 } else { f32::INFINITY })
+            .collect();
+        let key = |h: &Option<Hit>| h.map(|h| (h.t.to_bits(), h.surface, h.cell));
+        let (mut hits_seen, mut misses_seen) = (0, 0);
+        for normals in [Normals::Faceted, Normals::Smooth] {
+            scene.set_normals(normals);
+            for iso in [vec![2.5f32], vec![3.0, 1.7]] {
+                let (shaded, distances) = (scene.prepare(&iso), scene.prepare_distances(&iso));
+                for packet in [1, 4, 64, 256] {
+                    scene.set_packet_size(packet);
+                    let mut want = vec![None; rays.len()];
+                    scene.first_hit_packet_prepared(
+                        &rays,
+                        &t_min,
+                        &t_max,
+                        &shaded,
+                        &mut want,
+                        &mut NoStats,
+                    );
+                    let mut got = vec![None; rays.len()];
+                    scene.first_hit_packet_prepared(
+                        &rays,
+                        &t_min,
+                        &t_max,
+                        &distances,
+                        &mut got,
+                        &mut NoStats,
+                    );
+                    let mut occluded = vec![false; rays.len()];
+                    scene.occluded_packet_prepared(
+                        &rays,
+                        &t_min,
+                        &t_max,
+                        &shaded,
+                        &mut occluded,
+                        &mut NoStats,
+                    );
+                    for i in 0..rays.len() {
+                        let what = format!("{normals:?}, iso {iso:?}, packet {packet}, ray {i}");
+                        assert_eq!(key(&got[i]), key(&want[i]), "{what}");
+                        assert_eq!(occluded[i], want[i].is_some(), "{what}");
+                        if let Some(h) = got[i] {
+                            assert!((h.normal + rays[i].dir).length() < 1e-6, "{what}");
+                        }
+                        hits_seen += usize::from(want[i].is_some());
+                        misses_seen += usize::from(want[i].is_none());
+                    }
+                }
+            }
+        }
+        assert!(
+            hits_seen > 1000 && misses_seen > 200,
+            "{hits_seen} hits, {misses_seen} misses"
+        );
     }
 
     /// Colouring by another array: a linear field `g = 2x − y + 0.5z` sampled at the hits of
