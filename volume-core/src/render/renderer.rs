@@ -238,6 +238,9 @@ struct Ctx<'a, I> {
     isovalues: Vec<f32>,
     /// `isovalues` as the scene prepared them, once for the frame ([`IsoScene::prepare`]).
     isos: I,
+    /// With shadows, `isovalues` prepared for distances ([`IsoScene::prepare_distances`]):
+    /// a shadow ray only darkens its pixel, so its hits need no normal.
+    shadow_isos: Option<I>,
     surface_of: Vec<usize>,
     /// Where rays are traced: the scene's [`IsoScene::live_bounds`] for `isos`.
     bounds: Aabb,
@@ -540,6 +543,7 @@ fn render_impl<S: IsoScene, St: Stats, const SHADOWS: bool>(
         shader: Shader::new(&settings.light),
         bounds: live,
         isos,
+        shadow_isos: SHADOWS.then(|| scene.prepare_distances(&isovalues)),
         isovalues,
         surface_of,
         peel: Peel {
@@ -892,6 +896,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
         }
         if SHADOWS && !sc.shadow_rays.is_empty() {
             let m = sc.shadow_rays.len();
+            let shadow_isos = ctx.shadow_isos.as_ref().unwrap_or(&ctx.isos);
             if settings.packets {
                 sc.shadow_occluded.clear();
                 sc.shadow_occluded.resize(m, false);
@@ -899,7 +904,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                     &sc.shadow_rays,
                     &sc.shadow_t_min,
                     &sc.shadow_t_max,
-                    &ctx.isos,
+                    shadow_isos,
                     &mut sc.shadow_occluded,
                     &mut tally.stats,
                 );
@@ -916,7 +921,7 @@ fn render_tile<S: IsoScene, St: Stats, const SHADOWS: bool>(
                             &sc.shadow_rays[i],
                             sc.shadow_t_min[i],
                             sc.shadow_t_max[i],
-                            &ctx.isos,
+                            shadow_isos,
                             &mut tally.stats,
                         )
                     {

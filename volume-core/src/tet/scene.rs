@@ -384,23 +384,14 @@ impl TetScene {
     }
 
     fn to_hit(&self, ray: &Ray, h: &RawHit, isos: &TetIsovalues) -> Hit {
-        if !isos.normals {
-            return Self::distance_hit(ray, h);
-        }
         Hit {
             t: h.t,
             surface: h.surface,
-            normal: self.hit_normal(ray, h, &isos.values),
-            cell: h.tet,
-        }
-    }
-
-    /// A hit whose normal nobody reads (depth, shadows): the ray's reverse.
-    fn distance_hit(ray: &Ray, h: &RawHit) -> Hit {
-        Hit {
-            t: h.t,
-            surface: h.surface,
-            normal: (-ray.dir).normalize_or(Vec3::Z),
+            normal: if isos.normals {
+                self.hit_normal(ray, h, &isos.values)
+            } else {
+                (-ray.dir).normalize_or(Vec3::Z)
+            },
             cell: h.tet,
         }
     }
@@ -590,8 +581,8 @@ fn tet_gradient(verts: &[Vec4], t: &[u32; 4]) -> (DVec3, f64) {
 #[derive(Debug, Clone)]
 pub struct TetIsovalues {
     pub values: Vec<f32>,
-    /// False for depth-only frames ([`IsoScene::prepare_distances`]): hits get the ray's
-    /// reverse as their normal, and packets make no polygon normal.
+    /// False for depth-only frames and shadow rays ([`IsoScene::prepare_distances`]): hits
+    /// get the ray's reverse as their normal, and packets make no polygon normal.
     pub normals: bool,
 }
 
@@ -658,37 +649,6 @@ impl IsoScene for TetScene {
             .is_some()
     }
 
-    /// Shadow rays: the packets' first hits without any normal (a shadow ray only darkens
-    /// its pixel), as for a depth-only frame. Ending each ray at the first hit found
-    /// instead did not pay (docs/benchmarks.md, *Tried and not kept*).
-    fn occluded_packet_prepared<S: Stats>(
-        &self,
-        rays: &[Ray],
-        t_min: &[f32],
-        t_max: &[f32],
-        isos: &TetIsovalues,
-        out: &mut [bool],
-        stats: &mut S,
-    ) {
-        let mut hits = [None; MAX_PACKET];
-        for start in (0..rays.len()).step_by(MAX_PACKET) {
-            let end = (start + MAX_PACKET).min(rays.len());
-            let n = end - start;
-            self.first_hits_packet_with(
-                &rays[start..end],
-                &t_min[start..end],
-                &t_max[start..end],
-                isos,
-                false,
-                &mut hits[..n],
-                stats,
-            );
-            for (o, h) in out[start..end].iter_mut().zip(&hits[..n]) {
-                *o = h.is_some();
-            }
-        }
-    }
-
     /// Large packets collect every ray's layers in one traversal (`RayLayers`: its
     /// nearest hits up to the first opaque one) instead of a new packet from the root per
     /// layer; packets of at most 4 rays return first hits, as the trait's default does.
@@ -750,28 +710,10 @@ impl IsoScene for TetScene {
         out: &mut [Option<Hit>],
         stats: &mut S,
     ) {
-        self.first_hits_packet_with(rays, t_min, t_max, isos, isos.normals, out, stats);
-    }
-}
-
-impl TetScene {
-    /// [`IsoScene::first_hit_packet_prepared`], with shading normals only when `normals`
-    /// (else each hit's normal is the ray's reverse, as for distance-only isovalues).
-    #[allow(clippy::too_many_arguments)]
-    fn first_hits_packet_with<S: Stats>(
-        &self,
-        rays: &[Ray],
-        t_min: &[f32],
-        t_max: &[f32],
-        isos: &TetIsovalues,
-        normals: bool,
-        out: &mut [Option<Hit>],
-        stats: &mut S,
-    ) {
         let isovalues = &isos.values;
         let mut raw = [None; MAX_PACKET];
-        let faceted = normals && self.normals == Normals::Faceted;
-        if (faceted || !normals) && self.packet > 1 {
+        let faceted = isos.normals && self.normals == Normals::Faceted;
+        if (faceted || !isos.normals) && self.packet > 1 {
             // Faceted normals straight from the traversal (no second extraction per hit),
             // or none at all for distances. Same packets as `first_hit_packet_raw` below.
             let mut normals = [Vec3::ZERO; MAX_PACKET];
@@ -805,7 +747,7 @@ impl TetScene {
                                     cell: h.tet,
                                 }
                             } else {
-                                Self::distance_hit(&r[k], &h)
+                                self.to_hit(&r[k], &h, isos)
                             }
                         });
                     }
@@ -824,17 +766,11 @@ impl TetScene {
                 &mut raw[..n],
                 stats,
             );
-            if normals {
+            if isos.normals {
                 self.prefetch_normal_rows(raw[..n].iter().flatten());
             }
             for k in 0..n {
-                out[start + k] = raw[k].map(|h| {
-                    if normals {
-                        self.to_hit(&rays[start + k], &h, isos)
-                    } else {
-                        Self::distance_hit(&rays[start + k], &h)
-                    }
-                });
+                out[start + k] = raw[k].map(|h| self.to_hit(&rays[start + k], &h, isos));
             }
         }
     }
@@ -960,9 +896,10 @@ mod tests {
         assert!(hits_seen > 800, "{hits_seen} hits");
     }
 
-    /// Distances without normals (depth-only isovalues, shadow rays) find the hits that the
-    /// shaded packets find: the same `t`, surface and tet for every packet size, faceted and
-    /// smooth, and a shadow ray is occluded exactly when it has a first hit.
+    /// Distances without normals (depth-only frames, and shadow rays, which the renderer
+    /// traces with distance isovalues) find the hits that the shaded packets find: the same
+    /// `t`, surface and tet for every packet size, faceted and smooth, and a shadow ray is
+    /// occluded exactly when it has a first hit.
     #[test]
     fn distance_only_packets_find_the_shaded_packets_hits() {
         let n = 9;
@@ -1010,7 +947,7 @@ mod tests {
                         &rays,
                         &t_min,
                         &t_max,
-                        &shaded,
+                        &distances,
                         &mut occluded,
                         &mut NoStats,
                     );
