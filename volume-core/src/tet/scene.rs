@@ -649,6 +649,36 @@ impl IsoScene for TetScene {
             .is_some()
     }
 
+    /// Any-hit packets: a ray stops at the first crossing its walk finds, not the nearest
+    /// (`TetView::trace_packet_occluded`).
+    fn occluded_packet_prepared<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        isos: &TetIsovalues,
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        let p = self.packet;
+        for start in (0..rays.len()).step_by(p) {
+            let end = (start + p).min(rays.len());
+            if p == 1 {
+                out[start] =
+                    self.occluded_prepared(&rays[start], t_min[start], t_max[start], isos, stats);
+            } else {
+                self.view().trace_packet_occluded(
+                    &rays[start..end],
+                    &t_min[start..end],
+                    &t_max[start..end],
+                    &isos.values,
+                    &mut out[start..end],
+                    stats,
+                );
+            }
+        }
+    }
+
     /// Large packets collect every ray's layers in one traversal (`RayLayers`: its
     /// nearest hits up to the first opaque one) instead of a new packet from the root per
     /// layer; packets of at most 4 rays return first hits, as the trait's default does.
@@ -966,6 +996,65 @@ mod tests {
         }
         assert!(
             hits_seen > 1000 && misses_seen > 200,
+            "{hits_seen} hits, {misses_seen} misses"
+        );
+    }
+
+    /// Shadow-like packets (origins scattered through the mesh, one direction, ranges
+    /// that start and end inside it): the any-hit packets are occluded exactly where the
+    /// single-ray walk finds a first hit, for every packet size and ray order.
+    #[test]
+    fn any_hit_packets_agree_with_single_ray_first_hits() {
+        let n = 9;
+        let mut scene = grid_scene(n, 5);
+        let mut rng = crate::math::rng::Rng::new(77);
+        let (mut hits_seen, mut misses_seen) = (0, 0);
+        for dir in [Vec3::new(0.3, 0.5, 0.81), Vec3::new(-0.7, 0.1, -0.2)] {
+            let dir = dir.normalize();
+            let rays: Vec<Ray> = (0..700)
+                .map(|_| Ray::new(rng.vec3(0.0, (n - 1) as f32), dir))
+                .collect();
+            let t_min: Vec<f32> = (0..rays.len()).map(|_| rng.range_f32(0.0, 0.5)).collect();
+            let t_max: Vec<f32> = t_min
+                .iter()
+                .map(|&t0| {
+                    if rng.chance(0.3) {
+                        f32::INFINITY
+                    } else {
+                        t0 + rng.range_f32(0.0, 4.0)
+                    }
+                })
+                .collect();
+            for iso in [vec![2.5f32], vec![3.0, 1.7]] {
+                let isos = scene.prepare_distances(&iso);
+                let want: Vec<bool> = (0..rays.len())
+                    .map(|i| {
+                        scene
+                            .first_hit_raw(&rays[i], t_min[i], t_max[i], &iso, &mut NoStats)
+                            .is_some()
+                    })
+                    .collect();
+                for packet in [1, 4, 16, 64, 256] {
+                    scene.set_packet_size(packet);
+                    let mut got = vec![false; rays.len()];
+                    scene.occluded_packet_prepared(
+                        &rays,
+                        &t_min,
+                        &t_max,
+                        &isos,
+                        &mut got,
+                        &mut NoStats,
+                    );
+                    for i in 0..rays.len() {
+                        assert_eq!(got[i], want[i], "iso {iso:?}, packet {packet}, ray {i}");
+                    }
+                }
+                hits_seen += want.iter().filter(|&&h| h).count();
+                misses_seen += want.iter().filter(|&&h| !h).count();
+            }
+        }
+        assert!(
+            hits_seen > 500 && misses_seen > 500,
             "{hits_seen} hits, {misses_seen} misses"
         );
     }

@@ -43,6 +43,10 @@
 //! first hit on an opaque surface (`RayLayers`, thesis 004 §8.6), its range end lowered to
 //! that hit, so one traversal finds all the layers that a new packet per layer would.
 //!
+//! Shadow rays: the large packets can also close each ray's range at the first hit found,
+//! not the nearest (`Occluded`, an any-hit query), so a sub-frustum whose rays are all
+//! closed culls every node after, and the walk ends once every range is closed.
+//!
 //! Packets of at most 4 rays run the *standard* packet traversal instead (every ray tested
 //! at every node with the scalar slab test, descend if any hits; one extraction per tet for
 //! the packet): the 2×2 baseline of Table 8.4.
@@ -106,6 +110,25 @@ impl<const N: bool> LaneHits for Nearest<'_, N> {
             self.normals[r] = normal();
         }
         Some(hit.t)
+    }
+}
+
+/// The range end of a ray that [`Occluded`] has closed: below every `t`, and finite, so
+/// that the frustum tests' rounding margins stay finite and cull past it.
+const CLOSED: f32 = -f32::MAX;
+
+/// Whether each ray has any hit: a ray's range closes at the first hit found, not the
+/// nearest (an any-hit query, as shadow rays need), so the rest of the walk skips it and a
+/// sub-frustum whose rays are all closed culls every node after.
+struct Occluded<'a> {
+    out: &'a mut [bool],
+}
+
+impl LaneHits for Occluded<'_> {
+    #[inline(always)]
+    fn take(&mut self, r: usize, _hit: RawHit, _normal: impl FnOnce() -> Vec3) -> Option<f32> {
+        self.out[r] = true;
+        Some(CLOSED)
     }
 }
 
@@ -766,6 +789,35 @@ impl TetView<'_> {
         }
     }
 
+    /// Packet traversal of at most [`MAX_PACKET`] rays that only asks whether each ray hits
+    /// anything in its range (`out[i]`): large packets stop each ray at the first hit found
+    /// ([`Occluded`]); packets of at most 4 rays take the 2×2 baseline's first hits.
+    pub(crate) fn trace_packet_occluded<S: Stats>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [bool],
+        stats: &mut S,
+    ) {
+        let len = rays.len();
+        assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
+        out[..len].fill(false);
+        if !self.packet_may_hit(len, iso, stats) {
+            return;
+        }
+        if len <= 4 {
+            let mut first = [None; 4];
+            self.trace_standard(rays, t_min, t_max, iso, &mut first[..len], stats);
+            for (o, h) in out.iter_mut().zip(&first[..len]) {
+                *o = h.is_some();
+            }
+        } else {
+            self.trace_large_scratch(rays, t_min, t_max, iso, &mut Occluded { out }, stats);
+        }
+    }
+
     /// The large-packet traversal of more than 4 rays (at most [`MAX_PACKET`]) that collects
     /// each ray's hits in `layers` (its nearest ones, up to the first opaque one, for
     /// transparent surfaces: [`RayLayers`]) instead of its nearest hit only.
@@ -1043,6 +1095,10 @@ impl TetView<'_> {
                     );
                     if hit_groups != 0 {
                         tighten(gs, &mut fr, best, hit_groups);
+                        if fr.t1 <= CLOSED {
+                            // Every ray's range is closed ([`Occluded`]).
+                            return;
+                        }
                     }
                     break 'visit;
                 }
