@@ -768,12 +768,10 @@ impl TetView<'_> {
         normals: &mut [Vec3],
         stats: &mut S,
     ) {
-        let len = rays.len();
-        assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
-        out[..len].fill(None);
-        if !self.packet_may_hit(len, iso, stats) {
+        if !self.packet_start(rays, t_min, t_max, iso, out, None, stats) {
             return;
         }
+        let len = rays.len();
         if len <= 4 {
             self.trace_standard(rays, t_min, t_max, iso, out, stats);
             if N {
@@ -801,12 +799,10 @@ impl TetView<'_> {
         out: &mut [bool],
         stats: &mut S,
     ) {
-        let len = rays.len();
-        assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
-        out[..len].fill(false);
-        if !self.packet_may_hit(len, iso, stats) {
+        if !self.packet_start(rays, t_min, t_max, iso, out, false, stats) {
             return;
         }
+        let len = rays.len();
         if len <= 4 {
             let mut first = [None; 4];
             self.trace_standard(rays, t_min, t_max, iso, &mut first[..len], stats);
@@ -839,6 +835,27 @@ impl TetView<'_> {
         if self.packet_may_hit(len, iso, stats) {
             self.trace_large_scratch(rays, t_min, t_max, iso, layers, stats);
         }
+    }
+
+    /// A first-hit or occlusion packet's prologue: checks its slices, sets its `out` entries
+    /// to `none` and culls it at the root ([`TetView::packet_may_hit`]); false when that
+    /// is all.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn packet_start<S: Stats, T: Copy>(
+        &self,
+        rays: &[Ray],
+        t_min: &[f32],
+        t_max: &[f32],
+        iso: &[f32],
+        out: &mut [T],
+        none: T,
+        stats: &mut S,
+    ) -> bool {
+        let len = rays.len();
+        assert!(len <= MAX_PACKET && t_min.len() >= len && t_max.len() >= len && out.len() >= len);
+        out[..len].fill(none);
+        self.packet_may_hit(len, iso, stats)
     }
 
     /// Counts a packet's `len` rays and culls it at the root first: a packet that cannot
