@@ -126,8 +126,8 @@ mod tests {
     use super::*;
     use crate::math::rng::Rng;
 
-    /// The integer power against `f64` `powi` for exponents up to the cap, and the shaded
-    /// colour against the same shading with `powf` (a non-integral shininess a hair away).
+    /// The integer power against `f64` `powi` for exponents up to the cap, the shaded
+    /// colour against the same light shaded with `powf`, and which shininesses take it.
     #[test]
     fn integer_specular_powers_match_f64_powers() {
         let mut rng = Rng::new(9);
