@@ -9,10 +9,11 @@
 //! recorded in `docs/benchmarks.md` ("Out-of-core treelets").
 //!
 //! It needs about 20 GB of free disk in `ISOSCOPE_BIG_DIR` (default: the system temp dir)
-//! and minutes, so it is ignored in CI. Run:
+//! and minutes, so it is ignored, and built only with the package's `big` feature (CI's
+//! clippy checks it). Run:
 //!
 //! ```text
-//! ISOSCOPE_BIG_DIR=/path/with/20GB cargo test -p isoscope-e2e --test ooc_big -- --ignored --nocapture
+//! ISOSCOPE_BIG_DIR=/path/with/20GB cargo test -p isoscope-e2e --features big --test ooc_big -- --ignored --nocapture
 //! ```
 //!
 //! Set `ISOSCOPE_BIG_KEEP=1` to keep the input and the `.isot` afterwards (they are deleted
