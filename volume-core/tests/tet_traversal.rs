@@ -545,7 +545,8 @@ fn bih_and_sah_and_leaf_sizes_give_identical_hits() {
         })
         .collect();
     for builder in [BvhBuilder::Bih, BvhBuilder::Sah] {
-        for leaf_size in [1, 2, 8, 12, 16, 64] {
+        // 100: leaves with more polygons than the packets' leaf cache keeps.
+        for leaf_size in [1, 2, 8, 12, 16, 64, 100] {
             let mut s = TetScene::new(&mesh, "f", BvhOptions { builder, leaf_size }).unwrap();
             s.validate().unwrap();
             assert!(
@@ -554,6 +555,9 @@ fn bih_and_sah_and_leaf_sizes_give_identical_hits() {
                     .iter()
                     .all(|n| n.count as usize <= leaf_size)
             );
+            if leaf_size == 100 {
+                assert!(s.bvh().nodes().iter().any(|n| n.count > 64), "{builder:?}");
+            }
             let mut out = vec![None; rays.len()];
             s.set_packet_size(256);
             s.first_hit_packet_raw(

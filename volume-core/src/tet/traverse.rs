@@ -1008,6 +1008,7 @@ impl TetView<'_> {
             groups,
             gs,
             leaves,
+            overflow,
         } = sc;
         let blocks = &mut blocks[..nb];
         let best = &mut best[..nb];
@@ -1098,6 +1099,7 @@ impl TetView<'_> {
                         n,
                         node,
                         leaves,
+                        overflow,
                         rays,
                         t_min,
                         blocks,
@@ -1186,6 +1188,7 @@ impl TetView<'_> {
         n: &BvhNode,
         node: u32,
         leaves: &mut LeafCache,
+        overflow: &mut Vec<LeafPoly>,
         rays: &[Ray],
         t_min: &[f32],
         blocks: &mut [RayBlock],
@@ -1276,26 +1279,29 @@ impl TetView<'_> {
                 }
             }
         };
-        // The leaf's polygons from the cache, or extracted into it (too many to cache:
-        // extracted and tested one by one).
+        // The leaf's polygons from the cache, or extracted into it; too many to cache:
+        // extracted into `overflow`. One loop then tests them, so the test above is
+        // inlined into it (with a second call site it was a call per polygon).
         let max_len = n.count as usize * iso.len();
-        let cached = leaves.leaf(node, max_len, |out| {
+        let polys = match leaves.leaf(node, max_len, |out| {
             let mut k = 0;
             self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
                 out[k] = LeafPoly::new(ti, s, *poly);
                 k += 1;
             });
             k
-        });
-        match cached {
-            Some(polys) => {
-                for lp in polys {
-                    test(lp, stats);
-                }
+        }) {
+            Some(polys) => polys,
+            None => {
+                overflow.clear();
+                self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
+                    overflow.push(LeafPoly::new(ti, s, *poly));
+                });
+                overflow.as_slice()
             }
-            None => self.leaf_polys(n, iso, stats, |ti, s, _, poly, stats| {
-                test(&LeafPoly::new(ti, s, *poly), stats);
-            }),
+        };
+        for lp in polys {
+            test(lp, stats);
         }
         hit_groups
     }
@@ -1337,6 +1343,8 @@ pub(crate) struct PacketScratch {
     groups: Box<[Frustum; MAX_GROUPS]>,
     gs: Box<GroupSet>,
     leaves: LeafCache,
+    /// A leaf's polygons when they are too many for `leaves` (grown once, then reused).
+    overflow: Vec<LeafPoly>,
 }
 
 impl PacketScratch {
@@ -1347,6 +1355,7 @@ impl PacketScratch {
             groups: Box::new([Frustum::NONE; MAX_GROUPS]),
             gs: Box::new(GroupSet::NONE),
             leaves: LeafCache::new(),
+            overflow: Vec::new(),
         }
     }
 }
