@@ -1283,22 +1283,22 @@ impl TetView<'_> {
         // extracted into `overflow`. One loop then tests them, so the test above is
         // inlined into it (with a second call site it was a call per polygon).
         let max_len = n.count as usize * iso.len();
-        let polys = match leaves.leaf(node, max_len, |out| {
+        let cached = leaves.leaf(node, max_len, |out| {
             let mut k = 0;
             self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
                 out[k] = LeafPoly::new(ti, s, *poly);
                 k += 1;
             });
             k
-        }) {
-            Some(polys) => polys,
-            None => {
-                overflow.clear();
-                self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
-                    overflow.push(LeafPoly::new(ti, s, *poly));
-                });
-                overflow.as_slice()
-            }
+        });
+        let polys = if let Some(polys) = cached {
+            polys
+        } else {
+            overflow.clear();
+            self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
+                overflow.push(LeafPoly::new(ti, s, *poly));
+            });
+            overflow.as_slice()
         };
         for lp in polys {
             test(lp, stats);
