@@ -27,7 +27,8 @@ const SLOTS: usize = 8192;
 /// below reads them (a quarter of that, 768 KiB, left 186 k extractions a frame on the
 /// real TetGen head instead of 153 k, and a frame 1.02× as long).
 const RING: usize = 32768;
-/// Leaves that may hold more polygons than this (tets × isovalues) are not cached.
+/// Leaves that may hold more polygons than this (tets × isovalues) are not cached: they are
+/// extracted into a buffer of their own at every visit.
 pub(crate) const MAX_LEAF_POLYS: usize = 64;
 
 /// An isopolygon of a leaf, with its bounds, tet (leaf order) and isovalue index.
@@ -79,6 +80,8 @@ pub(crate) struct LeafCache {
     ring: Vec<LeafPoly>,
     /// Monotonic position of the next write; the ring index is `pos % RING`.
     pos: u64,
+    /// The polygons of a leaf too large to cache (grown once, then reused).
+    overflow: Vec<LeafPoly>,
 }
 
 impl LeafCache {
@@ -90,6 +93,7 @@ impl LeafCache {
             slots: Vec::new(),
             ring: Vec::new(),
             pos: 0,
+            overflow: Vec::new(),
         }
     }
 
@@ -128,22 +132,27 @@ impl LeafCache {
     }
 
     /// The polygons of leaf `node`: the cached ones, or those `extract` writes into the
-    /// slice it is given (at least `max_len` long), returning how many. `None` (and
-    /// `extract` not called) when `max_len` exceeds [`MAX_LEAF_POLYS`].
+    /// slice it is given (`max_len` long), returning how many. A leaf that may hold more
+    /// than [`MAX_LEAF_POLYS`] (or any leaf before [`LeafCache::begin`]) is extracted at
+    /// every call, into a buffer that is not kept.
     #[inline]
     pub(crate) fn leaf(
         &mut self,
         node: u32,
         max_len: usize,
         extract: impl FnOnce(&mut [LeafPoly]) -> usize,
-    ) -> Option<&[LeafPoly]> {
+    ) -> &[LeafPoly] {
         if max_len > MAX_LEAF_POLYS || self.ring.is_empty() {
-            return None;
+            if self.overflow.len() < max_len {
+                self.overflow.resize(max_len, LeafPoly::EMPTY);
+            }
+            let len = extract(&mut self.overflow[..max_len]).min(max_len);
+            return &self.overflow[..len];
         }
         let slot = &mut self.slots[node as usize & (SLOTS - 1)];
         if slot.node == node && self.pos <= slot.start + RING as u64 {
             let base = (slot.start % RING as u64) as usize;
-            return Some(&self.ring[base..base + slot.len as usize]);
+            return &self.ring[base..base + slot.len as usize];
         }
         // The leaf's span must not wrap: skip to the ring's start if it would.
         if (self.pos % RING as u64) as usize + max_len > RING {
@@ -157,7 +166,7 @@ impl LeafCache {
             start: self.pos,
         };
         self.pos += len as u64;
-        Some(&self.ring[base..base + len])
+        &self.ring[base..base + len]
     }
 }
 
@@ -213,7 +222,6 @@ mod tests {
                     called = true;
                     fill(k)(out)
                 })
-                .expect("cacheable")
                 .to_vec();
             extracted += usize::from(called);
             visits += 1;
@@ -232,7 +240,21 @@ mod tests {
             });
             assert!(called);
         }
-        // Too many polygons: not cached, not extracted.
-        assert!(c.leaf(1, MAX_LEAF_POLYS + 1, |_| unreachable!()).is_none());
+        // Too many polygons: extracted at every call, never cached.
+        let big = MAX_LEAF_POLYS + 1;
+        for _ in 0..2 {
+            let mut called = false;
+            let got = c
+                .leaf(1, big, |out| {
+                    called = true;
+                    assert_eq!(out.len(), big);
+                    fill(1)(out)
+                })
+                .to_vec();
+            assert!(called);
+            let mut want = vec![LeafPoly::EMPTY; big];
+            let n = fill(1)(&mut want);
+            assert_eq!(got, want[..n]);
+        }
     }
 }

@@ -1008,7 +1008,6 @@ impl TetView<'_> {
             groups,
             gs,
             leaves,
-            overflow,
         } = sc;
         let blocks = &mut blocks[..nb];
         let best = &mut best[..nb];
@@ -1099,7 +1098,6 @@ impl TetView<'_> {
                         n,
                         node,
                         leaves,
-                        overflow,
                         rays,
                         t_min,
                         blocks,
@@ -1188,7 +1186,6 @@ impl TetView<'_> {
         n: &BvhNode,
         node: u32,
         leaves: &mut LeafCache,
-        overflow: &mut Vec<LeafPoly>,
         rays: &[Ray],
         t_min: &[f32],
         blocks: &mut [RayBlock],
@@ -1279,11 +1276,11 @@ impl TetView<'_> {
                 }
             }
         };
-        // The leaf's polygons from the cache, or extracted into it; too many to cache:
-        // extracted into `overflow`. One loop then tests them, so the test above is
-        // inlined into it (with a second call site it was a call per polygon).
+        // The leaf's polygons from the cache, or extracted into it (too many to cache:
+        // extracted into the cache's buffer for them). One loop tests them, so the test
+        // above is inlined into it (with a second call site it was a call per polygon).
         let max_len = n.count as usize * iso.len();
-        let cached = leaves.leaf(node, max_len, |out| {
+        let polys = leaves.leaf(node, max_len, |out| {
             let mut k = 0;
             self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
                 out[k] = LeafPoly::new(ti, s, *poly);
@@ -1291,15 +1288,6 @@ impl TetView<'_> {
             });
             k
         });
-        let polys = if let Some(polys) = cached {
-            polys
-        } else {
-            overflow.clear();
-            self.leaf_polys(n, iso, stats, |ti, s, _, poly, _| {
-                overflow.push(LeafPoly::new(ti, s, *poly));
-            });
-            overflow.as_slice()
-        };
         for lp in polys {
             test(lp, stats);
         }
@@ -1343,8 +1331,6 @@ pub(crate) struct PacketScratch {
     groups: Box<[Frustum; MAX_GROUPS]>,
     gs: Box<GroupSet>,
     leaves: LeafCache,
-    /// A leaf's polygons when they are too many for `leaves` (grown once, then reused).
-    overflow: Vec<LeafPoly>,
 }
 
 impl PacketScratch {
@@ -1355,7 +1341,6 @@ impl PacketScratch {
             groups: Box::new([Frustum::NONE; MAX_GROUPS]),
             gs: Box::new(GroupSet::NONE),
             leaves: LeafCache::new(),
-            overflow: Vec::new(),
         }
     }
 }
