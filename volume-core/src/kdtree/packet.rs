@@ -2,7 +2,9 @@
 //! after Wald's coherent packets; the thesis used 4). Node min/max are fetched and culled
 //! once per packet, and the split distances of all rays are computed lane-wise in one
 //! `f32x16` (the `wide` crate: one AVX-512 register when enabled at compile time, AVX or SSE
-//! parts otherwise, no `unsafe`); the leaves test the rays in two `f32x8` halves.
+//! parts otherwise, no `unsafe`); the leaves test the rays in two `f32x8` halves, or in one
+//! when a cell's rays, at most 8, fall in both (gathered into one half: one cell test
+//! instead of two).
 //!
 //! A packet descends to one child when every active ray does, else to both; each ray keeps
 //! its own `[t_near, t_far]` lane, computed with exactly the single-ray formulas, and leaves
@@ -147,6 +149,8 @@ pub(crate) struct PacketRays {
     pub dir_pos: [bool; 3],
     /// The halves for the leaves (SIMD cell tests, [`crate::intersect::packet`]).
     pub leaf: [RaysX8; HALVES],
+    /// Lanes of both halves gathered into one for a cell test ([`gather_halves`]).
+    pub gathered: RaysX8,
     pub t_near: Lanes,
     pub t_far: Lanes,
 }
@@ -158,6 +162,7 @@ impl PacketRays {
         inv: [f32x16::ZERO; 3],
         dir_pos: [false; 3],
         leaf: [RaysX8::EMPTY; HALVES],
+        gathered: RaysX8::EMPTY,
         t_near: f32x16::ZERO,
         t_far: f32x16::ZERO,
     };
@@ -241,6 +246,67 @@ pub(crate) fn ray_go_on(
     }
 }
 
+/// Half `h`'s lanes in their own slots.
+const fn half_lanes(h: usize) -> [u8; 8] {
+    let mut lane = [0u8; 8];
+    let mut i = 0;
+    while i < 8 {
+        lane[i] = (8 * h + i) as u8;
+        i += 1;
+    }
+    lane
+}
+
+/// Lanes of both halves gathered into [`PacketRays::gathered`] ([`gather_halves`]).
+struct Gathered {
+    /// The packet lane in each slot.
+    lane: [u8; 8],
+    /// The slots that hold active lanes.
+    slots: u32,
+    /// The slots whose lane may be deferred (bit `k` of `undeferred` for lane `k`).
+    may_defer: u32,
+}
+
+/// Gathers the `active` lanes of both halves (at most 8 of them) into `p.gathered`: half
+/// 0's stay in their slots, half 1's move into its free ones, lowest first. At the bottom of
+/// the tree a live cell's few lanes often fall in both halves; one cell test of the
+/// gathered lanes then replaces two (on the real chest CT at bone 300, a third of the cell
+/// tests).
+#[inline(always)]
+fn gather_halves(p: &mut PacketRays, active: u32, undeferred: u32) -> Gathered {
+    let PacketRays { leaf, gathered, .. } = p;
+    // Field by field: the compiler copies each with vector moves, the whole struct (360
+    // bytes) with a `memcpy` call.
+    let (base, moved) = (&leaf[0], &leaf[1]);
+    gathered.origin = base.origin;
+    gathered.dir = base.dir;
+    gathered.inv_dir = base.inv_dir;
+    gathered.dir_pos = base.dir_pos;
+    gathered.t_lo = base.t_lo;
+    gathered.t_hi = base.t_hi;
+    let mut g = Gathered {
+        lane: half_lanes(0),
+        slots: active & 0xff,
+        may_defer: undeferred & 0xff,
+    };
+    let mut free = !active & 0xff;
+    for j in lane_indices((active >> 8) & 0xff) {
+        let i = free.trailing_zeros() as usize;
+        free &= free - 1;
+        g.lane[i] = (8 + j) as u8;
+        g.slots |= 1 << i;
+        g.may_defer = g.may_defer & !(1 << i) | (undeferred >> (8 + j) & 1) << i;
+        for a in 0..3 {
+            gathered.origin[a].as_mut_array()[i] = moved.origin[a].as_array()[j];
+            gathered.dir[a].as_mut_array()[i] = moved.dir[a].as_array()[j];
+            gathered.inv_dir[a].as_mut_array()[i] = moved.inv_dir[a].as_array()[j];
+        }
+        gathered.t_lo.as_mut_array()[i] = moved.t_lo.as_array()[j];
+        gathered.t_hi.as_mut_array()[i] = moved.t_hi.as_array()[j];
+    }
+    g
+}
+
 /// The leaf step of a packet traversal, written once for the in-core and out-of-core trees:
 /// tests cell `cell` of the block (`frame`, `voxels`, `dims`) against the `active` rays (bit
 /// `k` = ray `k`) in `f32x8` lanes, each over its clipped interval as the single-ray
@@ -252,7 +318,8 @@ pub(crate) fn ray_go_on(
 /// lane's segment ([`HitsX8::sole`]), where that test would find none. `defer` takes the
 /// lanes whose certain crossing ends them ([`Deferred`]). Even one active ray of a half
 /// takes the lanes: measured against a scalar test for halves of one or two rays, the lanes
-/// were no slower (docs/benchmarks.md).
+/// were no slower (docs/benchmarks.md). Lanes of both halves, at most 8, are tested as one
+/// half ([`gather_halves`]).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
@@ -275,57 +342,110 @@ pub(crate) fn packet_leaf<T: Voxel, C: CellIntersector, S: Stats>(
     let Some(pc) = PreparedCell::load(frame, voxels, dims, cell, isos) else {
         return lanes(best);
     };
-    for (h, half_rays) in p.leaf.iter_mut().enumerate() {
-        let mut test = (active >> (8 * h)) & 0xff;
-        // A lane is deferred once at most (its cut then ends the walk for it).
-        let (may_defer, defers) = defer
-            .as_ref()
-            .map_or((0, 0), |d| (!(d.lanes >> (8 * h)) & 0xff, d.surfaces));
-        while test != 0 {
-            let hits = intersect_prepared_cell_x8(
-                &pc,
-                half_rays,
-                test,
-                may_defer,
-                defers,
-                isos,
-                intersector,
-                stats,
-            );
-            if hits.deferred != 0
-                && let Some(d) = defer.as_deref_mut()
-            {
-                d.record(h, cell, &hits, best);
+    // A lane is deferred once at most (its cut then ends the walk for it).
+    let (undeferred, defers) = defer.as_ref().map_or((0, 0), |d| (!d.lanes, d.surfaces));
+    if active & 0xff != 0 && active >> 8 != 0 && active.count_ones() <= 8 {
+        let g = gather_halves(p, active, undeferred);
+        let PacketRays { leaf, gathered, .. } = p;
+        test_lanes(
+            &pc,
+            gathered,
+            g.lane,
+            g.slots,
+            (g.may_defer, defers),
+            Some(leaf),
+            isos,
+            intersector,
+            stats,
+            best,
+            defer.as_deref_mut(),
+            &mut on_hit,
+        );
+    } else {
+        for h in 0..HALVES {
+            let test = (active >> (8 * h)) & 0xff;
+            if test != 0 {
+                test_lanes(
+                    &pc,
+                    &mut p.leaf[h],
+                    half_lanes(h),
+                    test,
+                    ((undeferred >> (8 * h)) & 0xff, defers),
+                    None,
+                    isos,
+                    intersector,
+                    stats,
+                    best,
+                    defer.as_deref_mut(),
+                    &mut on_hit,
+                );
             }
-            let mut again = 0u32;
-            let mut b = hits.mask;
-            while b != 0 {
-                let i = b.trailing_zeros() as usize;
-                b &= b - 1;
-                let k = 8 * h + i;
-                if hits.t[i] < best[k] {
-                    let hit = CellHit {
-                        t: hits.t[i],
-                        surface: hits.surface[i],
-                        cell,
-                    };
-                    match on_hit(k, hit) {
-                        LaneNext::Stop(t) => best[k] = t,
-                        LaneNext::GoOnFrom(t) => {
-                            let mut t_lo = half_rays.t_lo.to_array();
-                            t_lo[i] = t;
-                            half_rays.t_lo = f32x8::new(t_lo);
-                            // The cell's only crossing on the lane's segment: a test past it
-                            // would find nothing.
-                            again |= !hits.sole & (1 << i);
-                        }
-                    }
-                }
-            }
-            test = again;
         }
     }
     lanes(best)
+}
+
+/// The cell test of [`packet_leaf`] for the lanes `test` of one half `rays`, whose slot `i`
+/// is packet lane `lane[i]`; `(may_defer, defers)` as for [`intersect_prepared_cell_x8`]. A
+/// lane that goes on past its hit has its interval start moved in `rays` and, when `rays` is
+/// a gathered copy, in its own half of `halves` too.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn test_lanes<T: Voxel, C: CellIntersector, S: Stats>(
+    pc: &PreparedCell<T>,
+    rays: &mut RaysX8,
+    lane: [u8; 8],
+    mut test: u32,
+    (may_defer, defers): (u32, u64),
+    mut halves: Option<&mut [RaysX8; HALVES]>,
+    isos: &IsoSet<T>,
+    intersector: C,
+    stats: &mut S,
+    best: &mut [f32; PACKET_WIDTH],
+    mut defer: Option<&mut Deferred>,
+    on_hit: &mut impl FnMut(usize, CellHit) -> LaneNext,
+) {
+    while test != 0 {
+        let hits =
+            intersect_prepared_cell_x8(pc, rays, test, may_defer, defers, isos, intersector, stats);
+        if hits.deferred != 0
+            && let Some(d) = defer.as_deref_mut()
+        {
+            d.record(lane, pc.cell, &hits, best);
+        }
+        let mut again = 0u32;
+        let mut b = hits.mask;
+        while b != 0 {
+            let i = b.trailing_zeros() as usize;
+            b &= b - 1;
+            let k = usize::from(lane[i]);
+            if hits.t[i] < best[k] {
+                let hit = CellHit {
+                    t: hits.t[i],
+                    surface: hits.surface[i],
+                    cell: pc.cell,
+                };
+                match on_hit(k, hit) {
+                    LaneNext::Stop(t) => best[k] = t,
+                    LaneNext::GoOnFrom(t) => {
+                        let mut t_lo = rays.t_lo.to_array();
+                        t_lo[i] = t;
+                        rays.t_lo = f32x8::new(t_lo);
+                        if let Some(halves) = halves.as_deref_mut() {
+                            let own = &mut halves[k / 8];
+                            let mut t_lo = own.t_lo.to_array();
+                            t_lo[k % 8] = t;
+                            own.t_lo = f32x8::new(t_lo);
+                        }
+                        // The cell's only crossing on the lane's segment: a test past it
+                        // would find nothing.
+                        again |= !hits.sole & (1 << i);
+                    }
+                }
+            }
+        }
+        test = again;
+    }
 }
 
 /// What a packet walk's hits are for ([`KdTree::walk_packet_in`]).
@@ -358,18 +478,19 @@ pub(crate) struct Deferred {
 }
 
 impl Deferred {
-    /// Records the deferred lanes of half `h`'s cell test in `cell`, and cuts them at their
-    /// segment's end. Out of line: the walk's loop stays as small as it was.
+    /// Records the deferred lanes of a cell test in `cell` (slot `i` is packet lane
+    /// `lane[i]`), and cuts them at their segment's end. Out of line: the walk's loop stays as
+    /// small as it was.
     #[inline(never)]
     fn record(
         &mut self,
-        h: usize,
+        lane: [u8; 8],
         cell: [usize; 3],
         hits: &HitsX8,
         best: &mut [f32; PACKET_WIDTH],
     ) {
         for i in lane_indices(hits.deferred) {
-            let k = 8 * h + i;
+            let k = usize::from(lane[i]);
             self.lanes |= 1 << k;
             self.iso[k] = hits.deferred_iso;
             self.cell[k] = cell;
@@ -683,5 +804,67 @@ impl<T: Voxel> KdTree<T> {
             };
             deferred.resolve(frame, voxels, self.dims, p, retrace, on_hit);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::Rng;
+    use glam::Vec3;
+
+    /// Gathered slots hold exactly the active lanes of both halves, each once, with their
+    /// rays' values.
+    #[test]
+    fn gathered_slots_hold_each_active_lane_once() {
+        let mut rng = Rng::new(7);
+        let mut tried = 0;
+        for _ in 0..2000 {
+            let rays: Vec<LocalRay> = (0..PACKET_WIDTH)
+                .map(|_| {
+                    let o = Vec3::new(
+                        rng.range_f32(-3.0, 3.0),
+                        rng.range_f32(-3.0, 3.0),
+                        rng.range_f32(-3.0, 3.0),
+                    );
+                    let d = Vec3::new(
+                        rng.range_f32(0.1, 1.0),
+                        -rng.range_f32(0.1, 1.0),
+                        rng.range_f32(0.1, 1.0),
+                    );
+                    LocalRay::new(o, d)
+                })
+                .collect();
+            let t0: Vec<f32> = (0..PACKET_WIDTH).map(|_| rng.range_f32(0.0, 1.0)).collect();
+            let t1: Vec<f32> = t0.iter().map(|t| t + rng.range_f32(0.0, 5.0)).collect();
+            let mut p = PacketRays::EMPTY;
+            p.set(&rays, &t0, &t1);
+            let active = rng.next_u32() & 0xffff;
+            if active.trailing_zeros() >= 8 || active >> 8 == 0 || active.count_ones() > 8 {
+                continue;
+            }
+            tried += 1;
+            let undeferred = rng.next_u32();
+            let g = gather_halves(&mut p, active, undeferred);
+            let (lane, slots) = (g.lane, g.slots);
+            assert_eq!(slots.count_ones(), active.count_ones());
+            let mut seen = 0u32;
+            for i in lane_indices(slots) {
+                let k = usize::from(lane[i]);
+                assert!(active >> k & 1 == 1, "slot {i} holds inactive lane {k}");
+                assert!(seen >> k & 1 == 0, "lane {k} twice");
+                seen |= 1 << k;
+                let (got, want) = (p.gathered.lane(i), rays[k]);
+                assert_eq!(got.origin, want.origin);
+                assert_eq!(got.dir, want.dir);
+                assert_eq!(got.inv_dir, want.inv_dir);
+                assert_eq!(p.gathered.t_lo.as_array()[i], t0[k]);
+                assert_eq!(p.gathered.t_hi.as_array()[i], t1[k]);
+                assert_eq!(g.may_defer >> i & 1, undeferred >> k & 1);
+            }
+            assert_eq!(seen, active);
+            assert_eq!(p.gathered.dir_pos, [true, false, true]);
+        }
+        assert!(tried > 100, "{tried} masks tried");
     }
 }
