@@ -32,14 +32,6 @@
 //! leaf with hits (and the packet's with it): once a region of the packet has found the
 //! surface, nodes behind it are culled by one frustum test instead of per-ray tests.
 //!
-//! Parallel packets (every ray with one direction `d`: shadow rays towards a directional
-//! light, an orthographic view) bound each sub-frustum across `d` instead: the extents of its
-//! origins along two axes across `d`, and its range along `d` (`o·d + t·|d|²` over its
-//! origins and `[t0, t1]`). A box passes when its projection onto each of the three axes
-//! meets the sub-frustum's. Shadow rays start on the surface, so a sub-frustum's origins
-//! spread over a tilted patch; the box of those origins swept along `d` (what the frustum
-//! test bounds) is wider across `d` than the origins themselves.
-//!
 //! The rays are held as 8-wide SoA blocks (`tet/simd.rs`): the first-active search tests
 //! 8 rays per step and each isopolygon is tested against 8 rays at once, with results
 //! bit-identical to the scalar tests. A block's watertight ray space (dominant axis, shear:
@@ -479,31 +471,6 @@ struct GroupSet {
     common_origin: [bool; 2],
     /// Bit `g` set for the groups in use.
     valid: u32,
-    /// Set for a packet whose rays share one direction: its groups are tested across it.
-    parallel: Option<Parallel>,
-}
-
-/// The sub-frusta of a parallel packet (module docs) across and along its direction `d`:
-/// axis 0 and 1 are unit vectors across `d`, axis 2 is `d` itself.
-#[derive(Clone, Copy)]
-struct Parallel {
-    axes: [Vec3A; 3],
-    abs_axes: [Vec3A; 3],
-    /// `|d|²`.
-    dd: f32,
-    /// Per half and axis: each group's least and greatest origin coordinate.
-    lo: [[f32x8; 3]; 2],
-    hi: [[f32x8; 3]; 2],
-    /// Rounding margin (world units): far above the error of the projections.
-    margin: f32,
-}
-
-/// The direction every ray of `rays` has, when it is finite and not zero and every origin
-/// is finite (a perspective packet stops at its second ray).
-fn common_direction(rays: &[Ray]) -> Option<Vec3> {
-    let d = rays.first()?.dir;
-    let same = rays.iter().all(|r| r.dir == d && r.origin.is_finite());
-    (same && d.is_finite() && d != Vec3::ZERO).then_some(d)
 }
 
 impl GroupSet {
@@ -517,7 +484,6 @@ impl GroupSet {
         t1: [f32x8::ZERO; 2],
         common_origin: [false; 2],
         valid: 0,
-        parallel: None,
     };
 
     fn new(groups: &[Frustum]) -> Self {
@@ -558,51 +524,7 @@ impl GroupSet {
             t0: [0, 1].map(|h| half(&r[15], h)),
             t1: [0, 1].map(|h| half(&r[16], h)),
             valid: (1u32 << groups.len()) - 1,
-            parallel: None,
         }
-    }
-
-    /// Switches to the tests across `d` (module docs) for a packet whose rays all have
-    /// direction `d` ([`common_direction`]): the groups' origin extents from `blocks` (the
-    /// packet's `len` rays, padding lanes repeating lane 0), and a margin for coordinates up
-    /// to `scale` in magnitude (the scene's and the origins').
-    fn set_parallel(&mut self, blocks: &[RayBlock], len: usize, d: Vec3, scale: f32) {
-        let Some(unit) = d.try_normalize() else {
-            return;
-        };
-        let (u, w) = unit.any_orthonormal_pair();
-        let axes = [u, w, d].map(Vec3A::from);
-        let mut lo = [[f32::INFINITY; MAX_GROUPS]; 3];
-        let mut hi = [[f32::NEG_INFINITY; MAX_GROUPS]; 3];
-        // A group's blocks side by side, then across the lanes.
-        for (g, group) in blocks[..len.div_ceil(LANES)]
-            .chunks(GROUP / LANES)
-            .enumerate()
-        {
-            for a in 0..3 {
-                let x = axes[a];
-                let (mut l, mut h) = (f32x8::INFINITY, f32x8::NEG_INFINITY);
-                for blk in group {
-                    let p = (blk.o[0] * f32x8::splat(x.x) + blk.o[1] * f32x8::splat(x.y))
-                        + blk.o[2] * f32x8::splat(x.z);
-                    (l, h) = (l.min(p), h.max(p));
-                }
-                lo[a][g] = l.to_array().into_iter().fold(f32::INFINITY, f32::min);
-                hi[a][g] = h.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
-            }
-        }
-        let half = |row: &[f32; MAX_GROUPS], h: usize| {
-            f32x8::new(std::array::from_fn(|l| row[h * LANES + l]))
-        };
-        let magnitude = scale * (2.0 + d.abs().element_sum()) + d.length_squared();
-        self.parallel = Some(Parallel {
-            axes,
-            abs_axes: axes.map(Vec3A::abs),
-            dd: d.length_squared(),
-            lo: [0, 1].map(|h| [0, 1, 2].map(|a| half(&lo[a], h))),
-            hi: [0, 1].map(|h| [0, 1, 2].map(|a| half(&hi[a], h))),
-            margin: 1e-4 * magnitude + 1e-30,
-        });
     }
 
     /// Bit `g` set for the groups in `want` that may meet the box `[lo, hi]` (`!misses`,
@@ -616,9 +538,7 @@ impl GroupSet {
             if (want >> (h * LANES)) as u8 == 0 {
                 continue;
             }
-            let miss = if let Some(p) = &self.parallel {
-                self.half_misses_parallel(p, h, lo, hi)
-            } else if self.common_origin[h] {
+            let miss = if self.common_origin[h] {
                 self.half_misses::<true>(h, lo, hi)
             } else {
                 self.half_misses::<false>(h, lo, hi)
@@ -661,31 +581,6 @@ impl GroupSet {
         }
         let margin = f32x8::splat(1e-5) * enter.abs().max(exit.abs()) + f32x8::splat(1e-30);
         (enter - exit).simd_gt(margin).to_bitmask()
-    }
-
-    /// The groups of half `h` that the box `[lo, hi]` misses, as a lane mask, for a parallel
-    /// packet: a ray `o + t·d` of a group that meets the box at `t ∈ [t0, t1]` meets it at a
-    /// point whose coordinate across `d` is its origin's (`d·u` vanishes up to rounding) and
-    /// whose coordinate along `d` is `o·d + t·|d|²`; the box's projection onto each axis must
-    /// meet the group's, up to the margin.
-    #[inline]
-    fn half_misses_parallel(&self, p: &Parallel, h: usize, lo: Vec3A, hi: Vec3A) -> u32 {
-        let c = (lo + hi) * 0.5;
-        let e = (hi - lo) * 0.5;
-        let m = f32x8::splat(p.margin);
-        let dd = f32x8::splat(p.dd);
-        let mut meets = 0xffu32;
-        for a in 0..3 {
-            let (pc, r) = (c.dot(p.axes[a]), e.dot(p.abs_axes[a]));
-            let (box_lo, box_hi) = (f32x8::splat(pc - r), f32x8::splat(pc + r));
-            let (g_lo, g_hi) = if a == 2 {
-                (p.lo[h][2] + self.t0[h] * dd, p.hi[h][2] + self.t1[h] * dd)
-            } else {
-                (p.lo[h][a], p.hi[h][a])
-            };
-            meets &= (box_hi.simd_ge(g_lo - m) & box_lo.simd_le(g_hi + m)).to_bitmask();
-        }
-        !meets & 0xff
     }
 
     /// Lowers group `g`'s range end to `t1` (after hits shortened its rays).
@@ -1140,15 +1035,6 @@ impl TetView<'_> {
         }
         let gs: &mut GroupSet = gs;
         *gs = GroupSet::new(&groups[..ng]);
-        if let Some(d) = common_direction(&rays[..len]) {
-            let scale = Vec3A::from_vec4(root.lo)
-                .abs()
-                .max(Vec3A::from_vec4(root.hi).abs())
-                .max(fr.omin.abs())
-                .max(fr.omax.abs())
-                .max_element();
-            gs.set_parallel(blocks, len, d, scale);
-        }
         leaves.begin(self.generation, iso);
         let nodes = &self.bvh.nodes;
         let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
@@ -1518,101 +1404,6 @@ mod tests {
                 assert!(!b.axis.test(1));
             }
         }
-    }
-
-    /// Parallel packets (one direction, origins scattered over a tilted patch, as shadow
-    /// rays' are): a group whose rays meet a box within their ranges is never culled by the
-    /// tests across the direction (truth: each ray's slab in `f64`), and the tests cull more
-    /// boxes than the frustum test of the same groups.
-    #[test]
-    fn parallel_groups_keep_every_box_their_rays_meet() {
-        let mut rng = crate::math::rng::Rng::new(11);
-        let mut f = move || rng.unit_f32() * 2.0 - 1.0;
-        let (mut met, mut culled, mut frustum_culled) = (0, 0, 0);
-        for trial in 0..200 {
-            let len = 1 + (trial * 37) % MAX_PACKET;
-            let d = Vec3::new(f(), f(), f() + 1.5) * (0.5 + f().abs());
-            let (n, c) = (Vec3::new(f(), f(), 1.0), Vec3::new(f(), f(), f()) * 5.0);
-            let (u, w) = n.normalize().any_orthonormal_pair();
-            let rays: Vec<Ray> = (0..len)
-                .map(|i| {
-                    // Origins on a tilted plane, in Morton-like runs of 16 nearby points.
-                    let (gx, gy) = ((i / GROUP) % 4, (i / GROUP) / 4);
-                    let (x, y) = (
-                        gx as f32 + 0.25 * (i % 4) as f32,
-                        gy as f32 + 0.25 * ((i / 4) % 4) as f32,
-                    );
-                    Ray::new(c + u * x + w * y, d)
-                })
-                .collect();
-            let t_min: Vec<f32> = (0..len).map(|_| 0.01 * f().abs()).collect();
-            let t_max: Vec<f32> = (0..len)
-                .map(|i| {
-                    if (trial + i) % 3 == 0 {
-                        f32::INFINITY
-                    } else {
-                        2.0 + 4.0 * f().abs()
-                    }
-                })
-                .collect();
-            let blocks: Vec<RayBlock> = (0..len.div_ceil(LANES))
-                .map(|b| {
-                    let (s, e) = (b * LANES, ((b + 1) * LANES).min(len));
-                    RayBlock::base(&rays[s..e], &t_min[s..e])
-                })
-                .collect();
-            let groups: Vec<Frustum> = (0..len.div_ceil(GROUP))
-                .map(|g| {
-                    let (s, e) = (g * GROUP, ((g + 1) * GROUP).min(len));
-                    Frustum::new(&rays[s..e], &t_min[s..e], &t_max[s..e])
-                })
-                .collect();
-            assert_eq!(common_direction(&rays), Some(d));
-            let plain = GroupSet::new(&groups);
-            let mut gs = plain;
-            gs.set_parallel(&blocks, len, d, 20.0);
-            assert!(gs.parallel.is_some());
-            for k in 0..40 {
-                // Small boxes near the rays' paths (where the two tests differ), and some
-                // anywhere.
-                let at = if k % 4 == 0 {
-                    Vec3A::from(c) + Vec3A::new(f(), f(), f()) * 8.0
-                } else {
-                    let r = &rays[(k * 7 + trial) % len];
-                    Vec3A::from(r.origin + d * (3.0 * f().abs())) + Vec3A::new(f(), f(), f())
-                };
-                let lo = at;
-                let hi = lo + Vec3A::new(f().abs(), f().abs(), f().abs()) * 0.3;
-                let (m, m_plain) = (gs.hits(lo, hi, u32::MAX), plain.hits(lo, hi, u32::MAX));
-                for g in 0..groups.len() {
-                    let (s, e) = (g * GROUP, ((g + 1) * GROUP).min(len));
-                    let meets = (s..e).any(|i| {
-                        let (o, dir) = (rays[i].origin.as_dvec3(), d.as_dvec3());
-                        let (l, h) = (Vec3::from(lo).as_dvec3(), Vec3::from(hi).as_dvec3());
-                        let (mut t0, mut t1) = (f64::from(t_min[i]), f64::from(t_max[i]));
-                        for a in 0..3 {
-                            let (ta, tb) = ((l[a] - o[a]) / dir[a], (h[a] - o[a]) / dir[a]);
-                            t0 = t0.max(ta.min(tb));
-                            t1 = t1.min(ta.max(tb));
-                        }
-                        t0 <= t1
-                    });
-                    let kept = m >> g & 1 == 1;
-                    assert!(
-                        kept || !meets,
-                        "trial {trial} group {g}: a ray meets the box"
-                    );
-                    met += usize::from(meets);
-                    culled += usize::from(!kept);
-                    frustum_culled += usize::from(m_plain >> g & 1 == 0);
-                }
-            }
-        }
-        assert!(met > 300, "{met} boxes met");
-        assert!(
-            culled > frustum_culled,
-            "culled {culled}, frustum {frustum_culled}"
-        );
     }
 
     /// The all-at-once sub-frustum test equals `Frustum::misses` per group (random boxes,
