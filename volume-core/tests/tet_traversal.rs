@@ -279,6 +279,62 @@ fn parallel_shadow_packets_match_single_rays() {
     }
 }
 
+/// Packets of parallel rays from a plane outside the mesh (an orthographic view: origins in
+/// a row-major grid, one direction) find the hits of single rays and of the brute force,
+/// with ranges closed early too.
+#[test]
+fn orthographic_packets_match_single_rays() {
+    for seed in 0..6u64 {
+        let mut rng = Rng::new(200 + seed);
+        let n = 6;
+        let mesh = grid_mesh(n, 0.3, &mut rng, noisy_field);
+        let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+        let (lo, hi) = scene.value_range().unwrap();
+        // A noisy sphere about (2, 2, 2) (`noisy_field`), the grid of rays aimed at it.
+        let iso = [lo + (hi - lo) * rng.range_f32(0.2, 0.5)];
+        let extent = (n - 1) as f32;
+        let c = Vec3::splat(2.0);
+        let dir = Vec3::new(
+            rng.range_f32(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
+            rng.range_f32(-1.0, 1.0),
+        )
+        .normalize()
+            * rng.range_f32(0.5, 2.0);
+        let (u, v) = dir.normalize().any_orthonormal_pair();
+        let side = 24;
+        let rays: Vec<Ray> = (0..side * side)
+            .map(|i| {
+                let (x, y) = ((i % side) as f32, (i / side) as f32);
+                let across = (x / (side - 1) as f32 - 0.5) * 1.2 * extent;
+                let up = (y / (side - 1) as f32 - 0.5) * 1.2 * extent;
+                let o = c - dir.normalize() * (2.0 * extent) + u * across + v * up;
+                Ray::new(o, dir)
+            })
+            .collect();
+        let t_min = vec![0.0; rays.len()];
+        let t_max: Vec<f32> = (0..rays.len())
+            .map(|i| {
+                if i % 5 == 0 {
+                    2.5 * extent
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .collect();
+        let hits = rays
+            .iter()
+            .filter(|r| {
+                scene
+                    .first_hit_raw(r, 0.0, f32::INFINITY, &iso, &mut NoStats)
+                    .is_some()
+            })
+            .count();
+        assert!(hits > 50, "{hits} hits");
+        check_all(&mut scene, &rays, &t_min, &t_max, &iso).unwrap();
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
     #[test]

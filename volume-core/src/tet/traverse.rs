@@ -32,6 +32,14 @@
 //! leaf with hits (and the packet's with it): once a region of the packet has found the
 //! surface, nodes behind it are culled by one frustum test instead of per-ray tests.
 //!
+//! Parallel packets (every ray with one direction `d`: shadow rays towards a directional
+//! light, an orthographic view) bound each sub-frustum across `d` instead: the extents of its
+//! origins along two axes across `d`, and its range along `d` (`o·d + t·|d|²` over its
+//! origins and `[t0, t1]`). A box passes when its projection onto each of the three axes
+//! meets the sub-frustum's. Shadow rays start on the surface, so a sub-frustum's origins
+//! spread over a tilted patch; the box of those origins swept along `d` (what the frustum
+//! test bounds) is wider across `d` than the origins themselves.
+//!
 //! The rays are held as 8-wide SoA blocks (`tet/simd.rs`): the first-active search tests
 //! 8 rays per step and each isopolygon is tested against 8 rays at once, with results
 //! bit-identical to the scalar tests. A block's watertight ray space (dominant axis, shear:
@@ -473,6 +481,84 @@ struct GroupSet {
     valid: u32,
 }
 
+/// The sub-frusta of a parallel packet (module docs) across and along its direction `d`:
+/// axis 0 and 1 are unit vectors across `d`, axis 2 is `d` itself. The traversal is
+/// instantiated for parallel packets and for the others ([`TetView::trace_large`]), so a
+/// perspective packet never asks which kind it is.
+#[derive(Clone, Copy)]
+struct Parallel {
+    axes: [Vec3A; 3],
+    abs_axes: [Vec3A; 3],
+    /// `|d|²`.
+    dd: f32,
+    /// Per half and axis: each group's least and greatest origin coordinate.
+    lo: [[f32x8; 3]; 2],
+    hi: [[f32x8; 3]; 2],
+    /// Rounding margin (world units): far above the error of the projections.
+    margin: f32,
+}
+
+/// The direction every ray of `rays` has, when it is finite and can be normalised and every
+/// origin is finite (a perspective packet stops at its second ray).
+fn common_direction(rays: &[Ray]) -> Option<Vec3> {
+    let d = rays.first()?.dir;
+    let same = rays.iter().all(|r| r.dir == d && r.origin.is_finite());
+    (same && d.is_finite() && d.try_normalize().is_some()).then_some(d)
+}
+
+impl Parallel {
+    /// Zeros (unused by packets that are not parallel).
+    const NONE: Parallel = Parallel {
+        axes: [Vec3A::ZERO; 3],
+        abs_axes: [Vec3A::ZERO; 3],
+        dd: 0.0,
+        lo: [[f32x8::ZERO; 3]; 2],
+        hi: [[f32x8::ZERO; 3]; 2],
+        margin: 0.0,
+    };
+
+    /// The tests across `d`, the direction every ray of a packet has ([`common_direction`]):
+    /// each group's origin extents from `blocks` (the packet's `len` rays, padding lanes
+    /// repeating lane 0), and a margin for coordinates up to `scale` in magnitude (the
+    /// scene's and the origins').
+    fn from_blocks(blocks: &[RayBlock], len: usize, d: Vec3, scale: f32) -> Self {
+        let (u, w) = d.normalize().any_orthonormal_pair();
+        let axes = [u, w, d].map(Vec3A::from);
+        // Unused groups: an empty extent.
+        let mut lo = [[f32::INFINITY; MAX_GROUPS]; 3];
+        let mut hi = [[f32::NEG_INFINITY; MAX_GROUPS]; 3];
+        // A group's blocks side by side, then across the lanes.
+        for (g, group) in blocks[..len.div_ceil(LANES)]
+            .chunks(GROUP / LANES)
+            .enumerate()
+        {
+            for a in 0..3 {
+                let x = axes[a];
+                let (mut l, mut h) = (f32x8::INFINITY, f32x8::NEG_INFINITY);
+                for blk in group {
+                    let p = (blk.o[0] * f32x8::splat(x.x) + blk.o[1] * f32x8::splat(x.y))
+                        + blk.o[2] * f32x8::splat(x.z);
+                    (l, h) = (l.min(p), h.max(p));
+                }
+                lo[a][g] = l.to_array().into_iter().fold(f32::INFINITY, f32::min);
+                hi[a][g] = h.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max);
+            }
+        }
+        let half = |row: &[f32; MAX_GROUPS], h: usize| {
+            f32x8::new(std::array::from_fn(|l| row[h * LANES + l]))
+        };
+        let magnitude = scale * (2.0 + d.abs().element_sum()) + d.length_squared();
+        Parallel {
+            axes,
+            abs_axes: axes.map(Vec3A::abs),
+            dd: d.length_squared(),
+            lo: [0, 1].map(|h| [0, 1, 2].map(|a| half(&lo[a], h))),
+            hi: [0, 1].map(|h| [0, 1, 2].map(|a| half(&hi[a], h))),
+            margin: 1e-4 * magnitude + 1e-30,
+        }
+    }
+}
+
 impl GroupSet {
     const NONE: GroupSet = GroupSet {
         omin: [[f32x8::ZERO; 3]; 2],
@@ -529,8 +615,10 @@ impl GroupSet {
 
     /// Bit `g` set for the groups in `want` that may meet the box `[lo, hi]` (`!misses`,
     /// conservative). Halves (groups 0–7, 8–15) without a wanted group are skipped.
+    /// With `PAR` the packet is parallel and its groups are tested across its direction
+    /// (`par`, [`GroupSet::half_misses_parallel`]); otherwise `par` is not read.
     #[inline(always)]
-    fn hits(&self, lo: Vec3A, hi: Vec3A, want: u32) -> u32 {
+    fn hits<const PAR: bool>(&self, par: &Parallel, lo: Vec3A, hi: Vec3A, want: u32) -> u32 {
         let want = want & self.valid;
         let mut m = 0;
         for h in 0..2 {
@@ -538,7 +626,9 @@ impl GroupSet {
             if (want >> (h * LANES)) as u8 == 0 {
                 continue;
             }
-            let miss = if self.common_origin[h] {
+            let miss = if PAR {
+                self.half_misses_parallel(par, h, lo, hi)
+            } else if self.common_origin[h] {
                 self.half_misses::<true>(h, lo, hi)
             } else {
                 self.half_misses::<false>(h, lo, hi)
@@ -581,6 +671,31 @@ impl GroupSet {
         }
         let margin = f32x8::splat(1e-5) * enter.abs().max(exit.abs()) + f32x8::splat(1e-30);
         (enter - exit).simd_gt(margin).to_bitmask()
+    }
+
+    /// The groups of half `h` that the box `[lo, hi]` misses, as a lane mask, for a parallel
+    /// packet: a ray `o + t·d` of a group that meets the box at `t ∈ [t0, t1]` meets it at a
+    /// point whose coordinate across `d` is its origin's (`d·u` vanishes up to rounding) and
+    /// whose coordinate along `d` is `o·d + t·|d|²`; the box's projection onto each axis must
+    /// meet the group's, up to the margin.
+    #[inline]
+    fn half_misses_parallel(&self, p: &Parallel, h: usize, lo: Vec3A, hi: Vec3A) -> u32 {
+        let c = (lo + hi) * 0.5;
+        let e = (hi - lo) * 0.5;
+        let m = f32x8::splat(p.margin);
+        let dd = f32x8::splat(p.dd);
+        let mut meets = 0xffu32;
+        for a in 0..3 {
+            let (pc, r) = (c.dot(p.axes[a]), e.dot(p.abs_axes[a]));
+            let (box_lo, box_hi) = (f32x8::splat(pc - r), f32x8::splat(pc + r));
+            let (g_lo, g_hi) = if a == 2 {
+                (p.lo[h][2] + self.t0[h] * dd, p.hi[h][2] + self.t1[h] * dd)
+            } else {
+                (p.lo[h][a], p.hi[h][a])
+            };
+            meets &= (box_hi.simd_ge(g_lo - m) & box_lo.simd_le(g_hi + m)).to_bitmask();
+        }
+        !meets & 0xff
     }
 
     /// Lowers group `g`'s range end to `t1` (after hits shortened its rays).
@@ -881,18 +996,21 @@ impl TetView<'_> {
         hits: &mut H,
         stats: &mut S,
     ) {
-        PACKET_SCRATCH.with(|cell| match cell.try_borrow_mut() {
-            Ok(mut sc) => self.trace_large(rays, t_min, t_max, iso, hits, stats, &mut sc),
-            // Re-entered from the same thread (not done by the renderer): fresh buffers.
-            Err(_) => self.trace_large(
-                rays,
-                t_min,
-                t_max,
-                iso,
-                hits,
-                stats,
-                &mut PacketScratch::new(),
-            ),
+        PACKET_SCRATCH.with(|cell| {
+            let mut guard = cell.try_borrow_mut();
+            let mut fresh = None;
+            let sc: &mut PacketScratch = match &mut guard {
+                Ok(sc) => sc,
+                // Re-entered from the same thread (not done by the renderer): fresh buffers.
+                Err(_) => fresh.insert(PacketScratch::new()),
+            };
+            // One walk for parallel packets, one for the others (the choice made once here).
+            if let Some(d) = common_direction(rays) {
+                self.trace_large::<S, H, true>(rays, t_min, t_max, iso, d, hits, stats, sc);
+            } else {
+                let d = Vec3::ZERO;
+                self.trace_large::<S, H, false>(rays, t_min, t_max, iso, d, hits, stats, sc);
+            }
         });
     }
 
@@ -987,14 +1105,17 @@ impl TetView<'_> {
     }
 
     /// The large-packet traversal (module docs) on 8-ray SIMD blocks; every hit within a
-    /// ray's range goes to `hits`, which may lower the range's end.
+    /// ray's range goes to `hits`, which may lower the range's end. With `PAR` every ray
+    /// has direction `dir` ([`common_direction`]) and the sub-frusta are tested across it
+    /// ([`Parallel`]); otherwise `dir` is not read.
     #[allow(clippy::too_many_arguments)]
-    fn trace_large<S: Stats, H: LaneHits>(
+    fn trace_large<S: Stats, H: LaneHits, const PAR: bool>(
         &self,
         rays: &[Ray],
         t_min: &[f32],
         t_max: &[f32],
         iso: &[f32],
+        dir: Vec3,
         hits: &mut H,
         stats: &mut S,
         sc: &mut PacketScratch,
@@ -1007,6 +1128,7 @@ impl TetView<'_> {
             best,
             groups,
             gs,
+            par,
             leaves,
         } = sc;
         let blocks = &mut blocks[..nb];
@@ -1035,6 +1157,16 @@ impl TetView<'_> {
         }
         let gs: &mut GroupSet = gs;
         *gs = GroupSet::new(&groups[..ng]);
+        if PAR {
+            let scale = Vec3A::from_vec4(root.lo)
+                .abs()
+                .max(Vec3A::from_vec4(root.hi).abs())
+                .max(fr.omin.abs())
+                .max(fr.omax.abs())
+                .max_element();
+            **par = Parallel::from_blocks(blocks, len, dir, scale);
+        }
+        let par: &Parallel = par;
         leaves.begin(self.generation, iso);
         let nodes = &self.bvh.nodes;
         let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
@@ -1066,7 +1198,7 @@ impl TetView<'_> {
                         let mut gm = gs.valid & after;
                         if ng > 1 && gm != 0 {
                             stats.box_test(u64::from(gm.count_ones()));
-                            gm = gs.hits(lo, hi, gm);
+                            gm = gs.hits::<PAR>(par, lo, hi, gm);
                         }
                         let mut found = None;
                         'search: while gm != 0 {
@@ -1094,7 +1226,7 @@ impl TetView<'_> {
                 }
                 if n.is_leaf() {
                     stats.leaf();
-                    let hit_groups = self.leaf_large(
+                    let hit_groups = self.leaf_large::<S, H, PAR>(
                         n,
                         node,
                         leaves,
@@ -1106,6 +1238,7 @@ impl TetView<'_> {
                         first,
                         &fr,
                         gs,
+                        par,
                         hits,
                         iso,
                         stats,
@@ -1181,7 +1314,7 @@ impl TetView<'_> {
     /// Returns the groups (bit `g`) where some ray's range end was lowered (`hits`).
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn leaf_large<S: Stats, H: LaneHits>(
+    fn leaf_large<S: Stats, H: LaneHits, const PAR: bool>(
         &self,
         n: &BvhNode,
         node: u32,
@@ -1194,6 +1327,7 @@ impl TetView<'_> {
         first: usize,
         fr: &Frustum,
         gs: &GroupSet,
+        par: &Parallel,
         hits: &mut H,
         iso: &[f32],
         stats: &mut S,
@@ -1208,7 +1342,7 @@ impl TetView<'_> {
             }
             let mut gm = from_group;
             if from_group & !1 != 0 {
-                gm = gs.hits(plo, phi, gm);
+                gm = gs.hits::<PAR>(par, plo, phi, gm);
             }
             let (poly, s, ti) = (&lp.poly, lp.surface, lp.tet);
             let hit = |t: f32| RawHit {
@@ -1330,6 +1464,7 @@ pub(crate) struct PacketScratch {
     best: Box<[f32x8; MAX_BLOCKS]>,
     groups: Box<[Frustum; MAX_GROUPS]>,
     gs: Box<GroupSet>,
+    par: Box<Parallel>,
     leaves: LeafCache,
 }
 
@@ -1340,6 +1475,7 @@ impl PacketScratch {
             best: Box::new([f32x8::ZERO; MAX_BLOCKS]),
             groups: Box::new([Frustum::NONE; MAX_GROUPS]),
             gs: Box::new(GroupSet::NONE),
+            par: Box::new(Parallel::NONE),
             leaves: LeafCache::new(),
         }
     }
@@ -1406,6 +1542,100 @@ mod tests {
         }
     }
 
+    /// Parallel packets (one direction, origins scattered over a tilted patch, as shadow
+    /// rays' are): a group whose rays meet a box within their ranges is never culled by the
+    /// tests across the direction (truth: each ray's slab in `f64`), and the tests cull more
+    /// boxes than the frustum test of the same groups.
+    #[test]
+    fn parallel_groups_keep_every_box_their_rays_meet() {
+        let mut rng = crate::math::rng::Rng::new(11);
+        let mut f = move || rng.unit_f32() * 2.0 - 1.0;
+        let (mut met, mut culled, mut frustum_culled) = (0, 0, 0);
+        for trial in 0..200 {
+            let len = 1 + (trial * 37) % MAX_PACKET;
+            let d = Vec3::new(f(), f(), f() + 1.5) * (0.5 + f().abs());
+            let (n, c) = (Vec3::new(f(), f(), 1.0), Vec3::new(f(), f(), f()) * 5.0);
+            let (u, w) = n.normalize().any_orthonormal_pair();
+            let rays: Vec<Ray> = (0..len)
+                .map(|i| {
+                    // Origins on a tilted plane, in Morton-like runs of 16 nearby points.
+                    let (gx, gy) = ((i / GROUP) % 4, (i / GROUP) / 4);
+                    let (x, y) = (
+                        gx as f32 + 0.25 * (i % 4) as f32,
+                        gy as f32 + 0.25 * ((i / 4) % 4) as f32,
+                    );
+                    Ray::new(c + u * x + w * y, d)
+                })
+                .collect();
+            let t_min: Vec<f32> = (0..len).map(|_| 0.01 * f().abs()).collect();
+            let t_max: Vec<f32> = (0..len)
+                .map(|i| {
+                    if (trial + i) % 3 == 0 {
+                        f32::INFINITY
+                    } else {
+                        2.0 + 4.0 * f().abs()
+                    }
+                })
+                .collect();
+            let groups: Vec<Frustum> = (0..len.div_ceil(GROUP))
+                .map(|g| {
+                    let (s, e) = (g * GROUP, ((g + 1) * GROUP).min(len));
+                    Frustum::new(&rays[s..e], &t_min[s..e], &t_max[s..e])
+                })
+                .collect();
+            assert_eq!(common_direction(&rays), Some(d));
+            let blocks: Vec<RayBlock> = (0..len.div_ceil(LANES))
+                .map(|b| {
+                    let (s, e) = (b * LANES, ((b + 1) * LANES).min(len));
+                    RayBlock::base(&rays[s..e], &t_min[s..e])
+                })
+                .collect();
+            let gs = GroupSet::new(&groups);
+            let par = Parallel::from_blocks(&blocks, len, d, 20.0);
+            for k in 0..40 {
+                // Small boxes near the rays' paths (where the two tests differ), and some
+                // anywhere.
+                let at = if k % 4 == 0 {
+                    Vec3A::from(c) + Vec3A::new(f(), f(), f()) * 8.0
+                } else {
+                    let r = &rays[(k * 7 + trial) % len];
+                    Vec3A::from(r.origin + d * (3.0 * f().abs())) + Vec3A::new(f(), f(), f())
+                };
+                let lo = at;
+                let hi = lo + Vec3A::new(f().abs(), f().abs(), f().abs()) * 0.3;
+                let m = gs.hits::<true>(&par, lo, hi, u32::MAX);
+                let m_plain = gs.hits::<false>(&Parallel::NONE, lo, hi, u32::MAX);
+                for g in 0..groups.len() {
+                    let (s, e) = (g * GROUP, ((g + 1) * GROUP).min(len));
+                    let meets = (s..e).any(|i| {
+                        let (o, dir) = (rays[i].origin.as_dvec3(), d.as_dvec3());
+                        let (l, h) = (Vec3::from(lo).as_dvec3(), Vec3::from(hi).as_dvec3());
+                        let (mut t0, mut t1) = (f64::from(t_min[i]), f64::from(t_max[i]));
+                        for a in 0..3 {
+                            let (ta, tb) = ((l[a] - o[a]) / dir[a], (h[a] - o[a]) / dir[a]);
+                            t0 = t0.max(ta.min(tb));
+                            t1 = t1.min(ta.max(tb));
+                        }
+                        t0 <= t1
+                    });
+                    let kept = m >> g & 1 == 1;
+                    assert!(
+                        kept || !meets,
+                        "trial {trial} group {g}: a ray meets the box"
+                    );
+                    met += usize::from(meets);
+                    culled += usize::from(!kept);
+                    frustum_culled += usize::from(m_plain >> g & 1 == 0);
+                }
+            }
+        }
+        assert!(met > 300, "{met} boxes met");
+        assert!(
+            culled > frustum_culled,
+            "culled {culled}, frustum {frustum_culled}"
+        );
+    }
+
     /// The all-at-once sub-frustum test equals `Frustum::misses` per group (random boxes,
     /// groups with zero and mixed-sign directions, partial packets).
     #[test]
@@ -1451,7 +1681,7 @@ mod tests {
                 } else {
                     (f().to_bits() >> 7) & 0xffff
                 };
-                let m = gs.hits(lo, hi, wanted);
+                let m = gs.hits::<false>(&Parallel::NONE, lo, hi, wanted);
                 for (g, fr) in groups.iter().enumerate() {
                     assert_eq!(fr.misses(lo, hi), fr.misses_by_axis(lo, hi));
                     // An axis left untested (a zero or mixed-sign direction component).
