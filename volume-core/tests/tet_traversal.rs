@@ -235,17 +235,24 @@ fn seeded_random_meshes_match_brute_force() {
     }
 }
 
+/// A jittered `n³`-point mesh of [`noisy_field`] (`n` = 6) from `seed`: `n`, its scene, its
+/// value range and the generator after it.
+fn noisy_scene(seed: u64) -> (usize, TetScene, (f32, f32), Rng) {
+    let mut rng = Rng::new(seed);
+    let n = 6;
+    let mesh = grid_mesh(n, 0.3, &mut rng, noisy_field);
+    let scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
+    let range = scene.value_range().unwrap();
+    (n, scene, range, rng)
+}
+
 /// Packets of parallel rays from surface points (shadow rays towards a directional light:
 /// origins spread over the surface, one direction) find the hits of single rays and of the
 /// brute force, rays that start on the surface itself included.
 #[test]
 fn parallel_shadow_packets_match_single_rays() {
     for seed in 0..8u64 {
-        let mut rng = Rng::new(100 + seed);
-        let n = 6;
-        let mesh = grid_mesh(n, 0.3, &mut rng, noisy_field);
-        let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
-        let (lo, hi) = scene.value_range().unwrap();
+        let (n, mut scene, (lo, hi), mut rng) = noisy_scene(100 + seed);
         let iso = [rng.range_f32(lo, hi), rng.range_f32(lo, hi)];
         let eyes: Vec<Ray> = (0..6)
             .flat_map(|_| random_rays(&mut rng, 1000, (n - 1) as f32, true))
@@ -285,11 +292,7 @@ fn parallel_shadow_packets_match_single_rays() {
 #[test]
 fn orthographic_packets_match_single_rays() {
     for seed in 0..6u64 {
-        let mut rng = Rng::new(200 + seed);
-        let n = 6;
-        let mesh = grid_mesh(n, 0.3, &mut rng, noisy_field);
-        let mut scene = TetScene::new(&mesh, "f", BvhOptions::default()).unwrap();
-        let (lo, hi) = scene.value_range().unwrap();
+        let (n, mut scene, (lo, hi), mut rng) = noisy_scene(200 + seed);
         // A noisy sphere about (2, 2, 2) (`noisy_field`), the grid of rays aimed at it.
         let iso = [lo + (hi - lo) * rng.range_f32(0.2, 0.5)];
         let extent = (n - 1) as f32;
