@@ -1005,11 +1005,10 @@ impl TetView<'_> {
                 Err(_) => fresh.insert(PacketScratch::new()),
             };
             // One walk for parallel packets, one for the others (the choice made once here).
-            if let Some(d) = common_direction(rays) {
-                self.trace_large::<S, H, true>(rays, t_min, t_max, iso, d, hits, stats, sc);
+            if common_direction(rays).is_some() {
+                self.trace_large::<S, H, true>(rays, t_min, t_max, iso, hits, stats, sc);
             } else {
-                let d = Vec3::ZERO;
-                self.trace_large::<S, H, false>(rays, t_min, t_max, iso, d, hits, stats, sc);
+                self.trace_large::<S, H, false>(rays, t_min, t_max, iso, hits, stats, sc);
             }
         });
     }
@@ -1106,8 +1105,8 @@ impl TetView<'_> {
 
     /// The large-packet traversal (module docs) on 8-ray SIMD blocks; every hit within a
     /// ray's range goes to `hits`, which may lower the range's end. With `PAR` every ray
-    /// has direction `dir` ([`common_direction`]) and the sub-frusta are tested across it
-    /// ([`Parallel`]); otherwise `dir` is not read.
+    /// has the first ray's direction ([`common_direction`]) and the sub-frusta are tested
+    /// across it ([`Parallel`]).
     #[allow(clippy::too_many_arguments)]
     fn trace_large<S: Stats, H: LaneHits, const PAR: bool>(
         &self,
@@ -1115,7 +1114,6 @@ impl TetView<'_> {
         t_min: &[f32],
         t_max: &[f32],
         iso: &[f32],
-        dir: Vec3,
         hits: &mut H,
         stats: &mut S,
         sc: &mut PacketScratch,
@@ -1164,7 +1162,7 @@ impl TetView<'_> {
                 .max(fr.omin.abs())
                 .max(fr.omax.abs())
                 .max_element();
-            **par = Parallel::from_blocks(blocks, len, dir, scale);
+            **par = Parallel::from_blocks(blocks, len, rays[0].dir, scale);
         }
         let par: &Parallel = par;
         leaves.begin(self.generation, iso);
