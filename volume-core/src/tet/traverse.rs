@@ -557,6 +557,18 @@ impl Parallel {
             margin: 1e-4 * magnitude + 1e-30,
         }
     }
+
+    /// The box `[lo, hi]` projected onto each axis: its least and greatest coordinate there
+    /// (centre and half-extent, so the projection's own rounding is below the margin).
+    #[inline(always)]
+    fn project(&self, lo: Vec3A, hi: Vec3A) -> [[f32x8; 2]; 3] {
+        let c = (lo + hi) * 0.5;
+        let e = (hi - lo) * 0.5;
+        [0, 1, 2].map(|a| {
+            let (pc, r) = (c.dot(self.axes[a]), e.dot(self.abs_axes[a]));
+            [f32x8::splat(pc - r), f32x8::splat(pc + r)]
+        })
+    }
 }
 
 impl GroupSet {
@@ -620,6 +632,12 @@ impl GroupSet {
     #[inline(always)]
     fn hits<const PAR: bool>(&self, par: &Parallel, lo: Vec3A, hi: Vec3A, want: u32) -> u32 {
         let want = want & self.valid;
+        // A parallel packet's box projections, once for both halves.
+        let proj = if PAR {
+            par.project(lo, hi)
+        } else {
+            [[f32x8::ZERO; 2]; 3]
+        };
         let mut m = 0;
         for h in 0..2 {
             // The 8 group bits of this half.
@@ -627,7 +645,7 @@ impl GroupSet {
                 continue;
             }
             let miss = if PAR {
-                self.half_misses_parallel(par, h, lo, hi)
+                self.half_misses_parallel(par, h, &proj)
             } else if self.common_origin[h] {
                 self.half_misses::<true>(h, lo, hi)
             } else {
@@ -677,17 +695,14 @@ impl GroupSet {
     /// packet: a ray `o + t·d` of a group that meets the box at `t ∈ [t0, t1]` meets it at a
     /// point whose coordinate across `d` is its origin's (`d·u` vanishes up to rounding) and
     /// whose coordinate along `d` is `o·d + t·|d|²`; the box's projection onto each axis must
-    /// meet the group's, up to the margin.
+    /// meet the group's, up to the margin. `proj` holds the box's projections onto the three
+    /// axes ([`Parallel::project`]), made once for both halves.
     #[inline]
-    fn half_misses_parallel(&self, p: &Parallel, h: usize, lo: Vec3A, hi: Vec3A) -> u32 {
-        let c = (lo + hi) * 0.5;
-        let e = (hi - lo) * 0.5;
+    fn half_misses_parallel(&self, p: &Parallel, h: usize, proj: &[[f32x8; 2]; 3]) -> u32 {
         let m = f32x8::splat(p.margin);
         let dd = f32x8::splat(p.dd);
         let mut meets = 0xffu32;
-        for a in 0..3 {
-            let (pc, r) = (c.dot(p.axes[a]), e.dot(p.abs_axes[a]));
-            let (box_lo, box_hi) = (f32x8::splat(pc - r), f32x8::splat(pc + r));
+        for (a, &[box_lo, box_hi]) in proj.iter().enumerate() {
             let (g_lo, g_hi) = if a == 2 {
                 (p.lo[h][2] + self.t0[h] * dd, p.hi[h][2] + self.t1[h] * dd)
             } else {
