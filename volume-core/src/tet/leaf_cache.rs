@@ -143,7 +143,6 @@ impl LeafCache {
         extract: impl FnOnce(&mut [LeafPoly]) -> usize,
     ) -> &[LeafPoly] {
         if max_len > MAX_LEAF_POLYS || self.ring.is_empty() {
-            std::hint::cold_path();
             if self.overflow.len() < max_len {
                 self.overflow.resize(max_len, LeafPoly::EMPTY);
             }
@@ -155,8 +154,6 @@ impl LeafCache {
             let base = (slot.start % RING as u64) as usize;
             return &self.ring[base..base + slot.len as usize];
         }
-        // A miss: most visits find their leaf cached.
-        std::hint::cold_path();
         // The leaf's span must not wrap: skip to the ring's start if it would.
         if (self.pos % RING as u64) as usize + max_len > RING {
             self.pos = (self.pos / RING as u64 + 1) * RING as u64;

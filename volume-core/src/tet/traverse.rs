@@ -1260,7 +1260,6 @@ impl TetView<'_> {
                         tighten(gs, &mut fr, best, hit_groups);
                         if fr.t1 <= CLOSED {
                             // Every ray's range is closed ([`Occluded`]).
-                            std::hint::cold_path();
                             return;
                         }
                     }
@@ -1384,7 +1383,6 @@ impl TetView<'_> {
                     }
                     if *spaced >> b & 1 == 0 {
                         // First polygon test of this block: its ray space, once per packet.
-                        std::hint::cold_path();
                         blocks[b].prepare_space(&rays[b * LANES..e]);
                         *spaced |= 1 << b;
                     }
@@ -1407,7 +1405,6 @@ impl TetView<'_> {
                         }
                     } else {
                         // Mixed ray-space axes or invalid rays: the scalar test per ray.
-                        std::hint::cold_path();
                         let bb = best[b].as_mut_array();
                         for r in i..e {
                             let rs = RaySpace::new(rays[r].origin, rays[r].dir);
