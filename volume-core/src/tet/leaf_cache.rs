@@ -1,16 +1,21 @@
-//! A per-thread cache of the isopolygons of recently visited BVH leaves.
+//! A per-thread cache of the isopolygons of visited BVH leaves.
 //!
 //! The large-packet traversal extracts a leaf's isopolygons on the fly (thesis 004 §8.2.4),
 //! and neighbouring packets of a tile visit many of the same leaves, as do a round's shadow
-//! packets, whose rays start on the surface the primary packets just found. Extraction
-//! (the tets' corner gathers, the case test, the edge interpolations and the polygon's
-//! bounds) was about a sixth of a frame: a second, discarded extraction pass made the
-//! faceted frame of the real TetGen head 1.17× as long. The cache keeps each extracted leaf's polygons
-//! with their bounds, so a later visit reads them instead.
+//! packets, whose rays start on the surface the primary packets just found, and the next
+//! frame at the same isovalues. Extraction (the tets' corner gathers, the case test, the
+//! edge interpolations and the polygon's bounds) was about a sixth of a frame: a second,
+//! discarded extraction pass made the faceted frame of the real TetGen head 1.17× as long.
+//! The cache keeps each extracted leaf's polygons with their bounds, so a later visit reads
+//! them instead.
 //!
-//! - Keyed by leaf node, in a direct-mapped table of [`SLOTS`] entries; the polygons live in
-//!   a ring of [`RING`] entries that later leaves overwrite. An entry is valid while its
-//!   span has not been overwritten, which one comparison of monotonic positions decides.
+//! - Keyed by leaf node, in a direct-mapped table with a slot per node up to [`MAX_SLOTS`];
+//!   the polygons live in a ring that later leaves overwrite once it is full. An entry is
+//!   valid while its span has not been overwritten, which one comparison of monotonic
+//!   positions decides.
+//! - The ring grows on demand up to its capacity: [`RING_BUDGET`] polygons shared by the
+//!   threads of the pool, each thread's at least [`MIN_RING`] and at most [`MAX_RING`]. On a
+//!   mesh whose visible surface fits, a steady frame extracts nothing.
 //! - Valid for one scene generation and one list of isovalues ([`LeafCache::begin`]): a new
 //!   isovalue, a refit or a rebuild forgets everything in O(1).
 //! - The polygons are those extraction makes (the same calls, the same order), so hits are
@@ -20,13 +25,20 @@ use glam::Vec3A;
 
 use super::mt::IsoPoly;
 
-/// Direct-mapped leaf slots (a power of two).
-const SLOTS: usize = 8192;
-/// Polygons kept (a power of two; 96 bytes each: 3 MiB). The renderer draws a band of 16×16
-/// tiles at a time; this holds about a band's live leaves on a 1024-wide frame, so the band
-/// below reads them (a quarter of that, 768 KiB, left 186 k extractions a frame on the
-/// real TetGen head instead of 153 k, and a frame 1.02× as long).
-const RING: usize = 32768;
+/// Most direct-mapped leaf slots (a power of two, 16 bytes each: 8 MiB); a smaller BVH gets
+/// a slot per node.
+const MAX_SLOTS: usize = 1 << 19;
+/// Polygons (96 bytes each) kept by all threads of a pool together: 48 MiB. The real TetGen
+/// head's view (663 k tets, 1024²) extracts about 135 k polygons, so with 2 threads each one
+/// keeps the whole view and a steady frame extracts none; a ring of 32,768 polygons a
+/// thread (3 MiB) left 150 k extractions a frame and made the faceted frame 1.09× as long,
+/// and a quarter of that 1.02× longer still.
+const RING_BUDGET: usize = 1 << 19;
+/// Each thread's ring holds at least this many polygons (3 MiB: a band of 16×16 tiles'
+/// live leaves on a 1024-wide frame, so the band below reads them) ...
+const MIN_RING: usize = 1 << 15;
+/// ... and at most this many (24 MiB).
+const MAX_RING: usize = 1 << 18;
 /// Leaves that may hold more polygons than this (tets × isovalues) are not cached: they are
 /// extracted into a buffer of their own at every visit.
 pub(crate) const MAX_LEAF_POLYS: usize = 64;
@@ -73,12 +85,24 @@ struct Slot {
     start: u64,
 }
 
+impl Slot {
+    const NONE: Self = Self {
+        node: u32::MAX,
+        len: 0,
+        start: 0,
+    };
+}
+
 pub(crate) struct LeafCache {
     generation: u64,
     iso_bits: Vec<u32>,
+    /// Direct-mapped by node (`node & (slots.len() - 1)`).
     slots: Vec<Slot>,
+    /// Grown on demand up to `capacity`, then overwritten in order.
     ring: Vec<LeafPoly>,
-    /// Monotonic position of the next write; the ring index is `pos % RING`.
+    /// The ring's size once grown (a power of two).
+    capacity: usize,
+    /// Monotonic position of the next write; the ring index is `pos % capacity`.
     pos: u64,
     /// The polygons of a leaf too large to cache (grown once, then reused).
     overflow: Vec<LeafPoly>,
@@ -92,33 +116,35 @@ impl LeafCache {
             iso_bits: Vec::new(),
             slots: Vec::new(),
             ring: Vec::new(),
+            capacity: 0,
             pos: 0,
             overflow: Vec::new(),
         }
     }
 
-    /// Starts a traversal of scene `generation` with isovalues `iso`: forgets every leaf
-    /// unless both are those of the cached polygons.
-    pub(crate) fn begin(&mut self, generation: u64, iso: &[f32]) {
-        if self.ring.is_empty() {
-            self.slots = vec![
-                Slot {
-                    node: u32::MAX,
-                    len: 0,
-                    start: 0,
-                };
-                SLOTS
-            ];
-            self.ring = vec![LeafPoly::EMPTY; RING];
-            self.forget();
-        }
+    /// Starts a traversal of scene `generation`, whose BVH has `nodes` nodes, with
+    /// isovalues `iso`: forgets every leaf unless both are those of the cached polygons.
+    /// The ring's capacity is this thread's share of [`RING_BUDGET`] among `threads`.
+    pub(crate) fn begin(&mut self, generation: u64, nodes: usize, iso: &[f32], threads: usize) {
+        let slots = nodes.next_power_of_two().clamp(1, MAX_SLOTS);
+        let capacity = (RING_BUDGET / threads.max(1))
+            .next_power_of_two()
+            .clamp(MIN_RING, MAX_RING);
         let same_iso = self.iso_bits.len() == iso.len()
             && self
                 .iso_bits
                 .iter()
                 .zip(iso)
                 .all(|(&b, c)| b == c.to_bits());
-        if self.generation != generation || !same_iso {
+        let resized = self.slots.len() < slots || self.capacity != capacity;
+        if resized {
+            // New tables: every slot names no node, so nothing in them is valid.
+            self.slots = vec![Slot::NONE; slots.max(self.slots.len())];
+            self.capacity = capacity;
+            self.ring.clear();
+            self.ring.shrink_to(capacity);
+        }
+        if resized || self.generation != generation || !same_iso {
             self.generation = generation;
             self.iso_bits.clear();
             self.iso_bits.extend(iso.iter().map(|c| c.to_bits()));
@@ -128,7 +154,8 @@ impl LeafCache {
 
     /// Moves the write position a whole ring on: every entry counts as overwritten.
     fn forget(&mut self) {
-        self.pos = (self.pos / RING as u64 + 2) * RING as u64;
+        let cap = self.capacity as u64;
+        self.pos = (self.pos / cap + 2) * cap;
     }
 
     /// The polygons of leaf `node`: the cached ones, or those `extract` writes into the
@@ -142,23 +169,33 @@ impl LeafCache {
         max_len: usize,
         extract: impl FnOnce(&mut [LeafPoly]) -> usize,
     ) -> &[LeafPoly] {
-        if max_len > MAX_LEAF_POLYS || self.ring.is_empty() {
+        if max_len > MAX_LEAF_POLYS || self.slots.is_empty() {
             if self.overflow.len() < max_len {
                 self.overflow.resize(max_len, LeafPoly::EMPTY);
             }
             let len = extract(&mut self.overflow[..max_len]).min(max_len);
             return &self.overflow[..len];
         }
-        let slot = &mut self.slots[node as usize & (SLOTS - 1)];
-        if slot.node == node && self.pos <= slot.start + RING as u64 {
-            let base = (slot.start % RING as u64) as usize;
+        let cap = self.capacity as u64;
+        let mask = self.slots.len() - 1;
+        let slot = &mut self.slots[node as usize & mask];
+        if slot.node == node && self.pos <= slot.start + cap {
+            let base = (slot.start % cap) as usize;
             return &self.ring[base..base + slot.len as usize];
         }
         // The leaf's span must not wrap: skip to the ring's start if it would.
-        if (self.pos % RING as u64) as usize + max_len > RING {
-            self.pos = (self.pos / RING as u64 + 1) * RING as u64;
+        if (self.pos % cap) as usize + max_len > self.capacity {
+            self.pos = (self.pos / cap + 1) * cap;
         }
-        let base = (self.pos % RING as u64) as usize;
+        let base = (self.pos % cap) as usize;
+        if base + max_len > self.ring.len() {
+            // Still growing: the written part keeps its positions.
+            let len = (base + max_len)
+                .max(2 * self.ring.len())
+                .max(MIN_RING)
+                .min(self.capacity);
+            self.ring.resize(len, LeafPoly::EMPTY);
+        }
         let len = extract(&mut self.ring[base..base + max_len]).min(max_len);
         *slot = Slot {
             node,
@@ -198,49 +235,55 @@ mod tests {
         }
     }
 
+    /// Leaf `k` through the cache, checked against extracting it again; true when the
+    /// cache had to extract it.
+    fn visit(c: &mut LeafCache, k: u32) -> bool {
+        let mut called = false;
+        let got = c
+            .leaf(k, 8, |out| {
+                called = true;
+                fill(k)(out)
+            })
+            .to_vec();
+        let mut want = vec![LeafPoly::EMPTY; 8];
+        let n = fill(k)(&mut want);
+        assert_eq!(got, want[..n], "leaf {k}");
+        called
+    }
+
     /// Against a twin that extracts every time: every answer equals the extracted one, a
     /// working set that fits is mostly read from the cache, and a new key forgets.
     #[test]
     fn cached_leaves_equal_extracted_ones() {
-        let mut c = LeafCache::new();
-        c.begin(7, &[1.0]);
-        let mut rng = crate::math::rng::Rng::new(5);
-        let (mut extracted, mut visits) = (0usize, 0usize);
-        for round in 0..40_000u32 {
-            if round == 20_000 {
-                c.begin(7, &[1.0]); // same key: keeps
+        for threads in [1, 2, 64] {
+            let mut c = LeafCache::new();
+            c.begin(7, 1 << 20, &[1.0], threads);
+            let mut rng = crate::math::rng::Rng::new(5);
+            let (mut extracted, mut visits) = (0usize, 0usize);
+            for round in 0..40_000u32 {
+                if round == 20_000 {
+                    c.begin(7, 1 << 20, &[1.0], threads); // same key: keeps
+                }
+                // Mostly a working set that fits, sometimes far leaves that evict.
+                let k = if rng.chance(0.9) {
+                    rng.below(600)
+                } else {
+                    rng.below(1_000_000)
+                };
+                extracted += usize::from(visit(&mut c, k));
+                visits += 1;
             }
-            // Mostly a working set that fits, sometimes far leaves that evict.
-            let k = if rng.chance(0.9) {
-                rng.below(600)
-            } else {
-                rng.below(1_000_000)
-            };
-            let mut called = false;
-            let got = c
-                .leaf(k, 8, |out| {
-                    called = true;
-                    fill(k)(out)
-                })
-                .to_vec();
-            extracted += usize::from(called);
-            visits += 1;
-            let mut want = vec![LeafPoly::EMPTY; 8];
-            let n = fill(k)(&mut want);
-            assert_eq!(got, want[..n], "leaf {k}");
-        }
-        assert!(extracted * 4 < visits, "{extracted} of {visits}");
-        // A new isovalue or generation forgets every leaf.
-        for (g, iso) in [(7, 2.0), (8, 2.0)] {
-            c.begin(g, &[iso]);
-            let mut called = false;
-            c.leaf(3, 8, |out| {
-                called = true;
-                fill(3)(out)
-            });
-            assert!(called);
+            assert!(extracted * 4 < visits, "{extracted} of {visits}");
+            assert!(c.ring.len() <= c.capacity);
+            // A new isovalue or generation forgets every leaf.
+            for (g, iso) in [(7, 2.0), (8, 2.0)] {
+                c.begin(g, 1 << 20, &[iso], threads);
+                assert!(visit(&mut c, 3));
+            }
         }
         // Too many polygons: extracted at every call, never cached.
+        let mut c = LeafCache::new();
+        c.begin(1, 16, &[1.0], 2);
         let big = MAX_LEAF_POLYS + 1;
         for _ in 0..2 {
             let mut called = false;
@@ -255,6 +298,37 @@ mod tests {
             let mut want = vec![LeafPoly::EMPTY; big];
             let n = fill(1)(&mut want);
             assert_eq!(got, want[..n]);
+        }
+    }
+
+    /// The ring grows to its capacity and no further; a sweep of leaves that fits is read
+    /// from the cache in full the second time (a steady frame), and one that does not fit
+    /// is overwritten in order and extracted again, with correct answers throughout.
+    #[test]
+    fn ring_grows_to_its_capacity_then_wraps() {
+        for threads in [2, 64] {
+            let mut c = LeafCache::new();
+            c.begin(3, 1 << 19, &[1.0], threads);
+            assert!(c.ring.is_empty(), "allocated before use");
+            let cap = c.capacity;
+            assert_eq!(cap, (RING_BUDGET / threads).clamp(MIN_RING, MAX_RING));
+            // Leaves of 1–5 polygons (3 on average): a sixteenth of a ring's leaves.
+            let fits = (cap / 16) as u32;
+            for pass in 0..2 {
+                let extracted = (0..fits).filter(|&k| visit(&mut c, k)).count();
+                assert_eq!(extracted, if pass == 0 { fits as usize } else { 0 });
+            }
+            if cap > MIN_RING {
+                assert!(c.ring.len() < cap, "grew past the polygons written");
+            }
+            // Twice the capacity: the ring fills, wraps, and the first leaves are gone.
+            let many = (cap / 2) as u32 + fits;
+            for k in fits..many {
+                visit(&mut c, k);
+            }
+            assert_eq!(c.ring.len(), cap);
+            assert!(visit(&mut c, 0), "leaf 0 was overwritten");
+            assert!(!visit(&mut c, many - 1), "the last leaf is still cached");
         }
     }
 }

@@ -1180,7 +1180,12 @@ impl TetView<'_> {
             **par = Parallel::from_blocks(blocks, len, rays[0].dir, scale);
         }
         let par: &Parallel = par;
-        leaves.begin(self.generation, iso);
+        leaves.begin(
+            self.generation,
+            self.bvh.nodes.len(),
+            iso,
+            rayon::current_num_threads(),
+        );
         let nodes = &self.bvh.nodes;
         let mut stack = [(0u32, 0u16); MAX_DEPTH + 1];
         let mut sp = 0;
