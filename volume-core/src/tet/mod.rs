@@ -9,8 +9,9 @@
 //! - [`traverse`]: single-ray and 16×16 packet traversal with implicit isorange culling,
 //!   speculative first-active descent, interval frustum culling and first-active tracking
 //!   (§8.4.2), isopolygon frustum culling (§8.2.3).
-//! - `leaf_cache`: the per-thread cache of recently visited leaves' isopolygons that the
-//!   large packets read instead of extracting them again.
+//! - `leaf_cache`: the per-thread cache of visited leaves' isopolygons that the large
+//!   packets read instead of extracting them again, kept across frames at the same
+//!   isovalues.
 //! - [`scene`]: [`TetScene`], the [`crate::render::IsoScene`] the renderer draws, with
 //!   faceted or smooth normals (§8.3), scalar/position refits for time steps (§8.5) and the
 //!   brute-force twin; [`TetField`], another point array sampled at hits (colouring).

@@ -20,8 +20,8 @@
 //! 5. **Leaves**: per tet, an isorange test per isovalue; the isopolygon is extracted on the
 //!    fly (§8.2.4), culled against the packet frustum by its bounds (§8.2.3), then tested
 //!    against rays `first..`. A thread keeps the polygons and bounds of the leaves it
-//!    visited last (`leaf_cache`), which later packets of a tile, and its shadow packets,
-//!    read instead of extracting them again.
+//!    visited (`leaf_cache`), which later packets of a tile, its shadow packets and the
+//!    next frames at the same isovalues read instead of extracting them again.
 //!
 //! Refinement: the packet is also split into sub-frusta of 16 consecutive rays (4×4 blocks
 //! of a Morton-ordered tile), held in SoA form so that one call tests a box against all 16
