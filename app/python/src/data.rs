@@ -275,7 +275,7 @@ impl Mesh {
     /// A mesh from `points` (N×3), `tets` (M×4 point indices) and per-point scalar `fields`
     /// (name → N values); `field` is the one drawn (default: the first).
     #[new]
-    #[pyo3(signature = (points, tets, fields, field=None, bvh="sah", leaf_size=12, normals="faceted"))]
+    #[pyo3(signature = (points, tets, fields, field=None, bvh="sah", leaf_size=None, normals="faceted"))]
     fn new<'py>(
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
@@ -283,7 +283,7 @@ impl Mesh {
         fields: &Bound<'py, PyDict>,
         field: Option<String>,
         bvh: &str,
-        leaf_size: usize,
+        leaf_size: Option<usize>,
         normals: &str,
     ) -> PyResult<PyClassInitializer<Self>> {
         let np = py.import("numpy")?;
@@ -355,7 +355,7 @@ impl Mesh {
             .py_err()?;
         let mesh_args = MeshArgs {
             bvh: Some(open_args::parse_bvh(bvh).map_err(value_error)?),
-            leaf_size: Some(leaf_size),
+            leaf_size,
             packet: None,
             normals: Some(open_args::parse_normals(normals).map_err(value_error)?),
         };

@@ -134,7 +134,7 @@ pub struct MeshArgs {
     /// Meshes: BVH builder, sah (binned SAH; default) or bih (spatial median, builds faster).
     #[arg(long, value_name = "bih|sah", value_parser = parse_bvh, help_heading = "Tetrahedral meshes")]
     pub bvh: Option<BvhBuilder>,
-    /// Meshes: most tets per BVH leaf, 1..=255 (default 12).
+    /// Meshes: most tets per BVH leaf, 1..=255 (default 32).
     #[arg(long, value_name = "N", help_heading = "Tetrahedral meshes")]
     pub leaf_size: Option<usize>,
     /// Meshes: rays per packet SIDE: 16 = 16×16 = 256 rays (default), 8, 4, 2 = 2×2 = 4 rays,

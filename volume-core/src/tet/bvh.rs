@@ -77,9 +77,11 @@ impl std::str::FromStr for BvhBuilder {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BvhOptions {
     pub builder: BvhBuilder,
-    /// Maximum tets per leaf (thesis: 12; clamped to `1..=255`). Measured at 1024² on
-    /// 223 k and 304 k tets (docs/benchmarks.md): frame time is flat from 2 to 16
-    /// and slower at 24; 12 keeps the tree small at no measurable cost.
+    /// Maximum tets per leaf (clamped to `1..=255`; the thesis uses 12). 32 since the
+    /// leaf cache keeps a view's isopolygons across frames: a leaf's tets that straddle no
+    /// isovalue then cost nothing after the first visit, so larger leaves save node
+    /// visits (docs/benchmarks.md: the TetGen head's frame 0.93× that of 12, frames that
+    /// change the isovalue 0.95×, 48 and 64 within 2 % of 32).
     pub leaf_size: usize,
 }
 
@@ -87,7 +89,7 @@ impl Default for BvhOptions {
     fn default() -> Self {
         Self {
             builder: BvhBuilder::default(),
-            leaf_size: 12,
+            leaf_size: 32,
         }
     }
 }

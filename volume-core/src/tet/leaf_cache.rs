@@ -39,9 +39,9 @@ const RING_BUDGET: usize = 1 << 19;
 const MIN_RING: usize = 1 << 15;
 /// ... and at most this many (24 MiB).
 const MAX_RING: usize = 1 << 18;
-/// Leaves that may hold more polygons than this (tets × isovalues) are not cached: they are
-/// extracted into a buffer of their own at every visit.
-pub(crate) const MAX_LEAF_POLYS: usize = 64;
+/// Leaves that may hold more polygons than this (tets × isovalues: 32-tet leaves and 16
+/// isovalues) are not cached: they are extracted into a buffer of their own at every visit.
+pub(crate) const MAX_LEAF_POLYS: usize = 512;
 
 /// An isopolygon of a leaf, with its bounds, tet (leaf order) and isovalue index.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -90,7 +90,7 @@ class Mesh(Data):
         fields: Mapping[str, npt.ArrayLike],
         field: Optional[str] = None,
         bvh: Literal["bih", "sah"] = "sah",
-        leaf_size: int = 12,
+        leaf_size: Optional[int] = None,
         normals: Literal["faceted", "smooth"] = "faceted",
     ) -> None: ...
     @property
