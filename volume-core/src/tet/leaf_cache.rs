@@ -29,7 +29,7 @@ use super::mt::IsoPoly;
 /// a slot per node.
 const MAX_SLOTS: usize = 1 << 19;
 /// Polygons (96 bytes each) kept by all threads of a pool together: 48 MiB. The real TetGen
-/// head's view (663 k tets, 1024²) extracts about 135 k polygons, so with 2 threads each one
+/// head's view (663 k tets, 1024²) extracts about 140 k polygons, so with 2 threads each one
 /// keeps the whole view and a steady frame extracts none; a ring of 32,768 polygons a
 /// thread (3 MiB) left 150 k extractions a frame and made the faceted frame 1.08× as long,
 /// and a quarter of that 1.02× longer still. A thread keeps its tables while it lives.
