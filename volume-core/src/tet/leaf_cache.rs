@@ -9,8 +9,9 @@
 //! The cache keeps each extracted leaf's polygons with their bounds, so a later visit reads
 //! them instead.
 //!
-//! - Keyed by leaf node, in a direct-mapped table with a slot per node up to [`MAX_SLOTS`];
-//!   the polygons live in a ring that later leaves overwrite once it is full. An entry is
+//! - Keyed by leaf node, in a direct-mapped table with a slot per node, up to twice as
+//!   many slots as the ring holds polygons; the polygons live in a ring that later leaves
+//!   overwrite once it is full. An entry is
 //!   valid while its span has not been overwritten, which one comparison of monotonic
 //!   positions decides.
 //! - The ring grows on demand up to its capacity: [`RING_BUDGET`] polygons shared by the
@@ -25,9 +26,6 @@ use glam::Vec3A;
 
 use super::mt::IsoPoly;
 
-/// Most direct-mapped leaf slots (a power of two, 16 bytes each: 8 MiB); a smaller BVH gets
-/// a slot per node.
-const MAX_SLOTS: usize = 1 << 19;
 /// Polygons (96 bytes each) kept by all threads of a pool together: 48 MiB. The real TetGen
 /// head's view (663 k tets, 1024²) extracts about 140 k polygons, so with 2 threads each one
 /// keeps the whole view and a steady frame extracts none; a ring of 32,768 polygons a
@@ -37,7 +35,8 @@ const RING_BUDGET: usize = 1 << 19;
 /// Each thread's ring holds at least this many polygons (3 MiB: a band of 16×16 tiles'
 /// live leaves on a 1024-wide frame, so the band below reads them) ...
 const MIN_RING: usize = 1 << 15;
-/// ... and at most this many (24 MiB).
+/// ... and at most this many (24 MiB). A thread's slots (16 bytes each) are at most twice
+/// its ring's polygons, so its tables take at most 4/3 of its ring: 32 MiB.
 const MAX_RING: usize = 1 << 18;
 /// Leaves that may hold more polygons than this (tets × isovalues: 32-tet leaves and 16
 /// isovalues) are not cached: they are extracted into a buffer of their own at every visit.
@@ -126,10 +125,10 @@ impl LeafCache {
     /// isovalues `iso`: forgets every leaf unless both are those of the cached polygons.
     /// The ring's capacity is this thread's share of [`RING_BUDGET`] among `threads`.
     pub(crate) fn begin(&mut self, generation: u64, nodes: usize, iso: &[f32], threads: usize) {
-        let slots = nodes.next_power_of_two().clamp(1, MAX_SLOTS);
         let capacity = (RING_BUDGET / threads.max(1))
             .next_power_of_two()
             .clamp(MIN_RING, MAX_RING);
+        let slots = nodes.next_power_of_two().min(2 * capacity);
         let same_iso = self.iso_bits.len() == iso.len()
             && self
                 .iso_bits
@@ -312,6 +311,11 @@ mod tests {
             assert!(c.ring.is_empty(), "allocated before use");
             let cap = c.capacity;
             assert_eq!(cap, (RING_BUDGET / threads).clamp(MIN_RING, MAX_RING));
+            assert_eq!(
+                c.slots.len(),
+                (1 << 19).min(2 * cap),
+                "slots bounded by the ring"
+            );
             // Leaves of 1–5 polygons (3 on average): a sixteenth of a ring's leaves.
             let fits = (cap / 16) as u32;
             for pass in 0..2 {
