@@ -138,7 +138,7 @@ impl LeafCache {
         let resized = self.slots.len() < slots || self.capacity != capacity;
         if resized {
             // New tables: every slot names no node, so nothing in them is valid.
-            self.slots = vec![Slot::NONE; slots.max(self.slots.len())];
+            self.slots = vec![Slot::NONE; slots];
             self.capacity = capacity;
             self.ring.clear();
             self.ring.shrink_to(capacity);
